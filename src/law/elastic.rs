@@ -1,0 +1,48 @@
+use super::{ForceLaw, LawEval};
+
+/// Linear elastic bar, N = EA (l − l0)/l0 (engineering strain), as OpenSees' corotational
+/// truss uses. With `tension_only` a slack member (l < l0) carries nothing and has no
+/// material stiffness: a steel or nylon cable.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinearElastic {
+    /// Axial rigidity EA [N].
+    pub ea: f64,
+    pub tension_only: bool,
+}
+
+impl LinearElastic {
+    fn slack(&self, l: f64, l0: f64) -> bool {
+        self.tension_only && l < l0
+    }
+}
+
+impl ForceLaw for LinearElastic {
+    fn eval(&self, l: f64, l0: f64) -> LawEval {
+        if self.slack(l, l0) {
+            return LawEval { force: 0.0, stiffness: 0.0 };
+        }
+        LawEval { force: self.ea * (l - l0) / l0, stiffness: self.ea / l0 }
+    }
+
+    fn energy(&self, l: f64, l0: f64) -> f64 {
+        if self.slack(l, l0) {
+            return 0.0;
+        }
+        0.5 * self.ea * (l - l0).powi(2) / l0
+    }
+
+    fn d_force_d_rest(&self, l: f64, l0: f64) -> f64 {
+        if self.slack(l, l0) {
+            return 0.0;
+        }
+        -self.ea * l / (l0 * l0)
+    }
+
+    fn name(&self) -> &'static str {
+        if self.tension_only {
+            "elastic_tension_only"
+        } else {
+            "elastic"
+        }
+    }
+}

@@ -1,0 +1,34 @@
+//! The element force equation (paper eqs 3, 9): every member's axial force is a function of
+//! its current length `l` and its non-stressed (rest) length `l0`. Every stage of tsim —
+//! form-finding, vibration, folding, deployment — sees members only through [`ForceLaw`];
+//! adding a material means adding one type that implements it.
+
+mod elastic;
+mod measure;
+mod ogden;
+
+pub use elastic::LinearElastic;
+pub use measure::MeasurePotential;
+pub use ogden::{ogden_nominal_stress, OgdenCord, OgdenTerm};
+
+/// Force and its length derivative at one length.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LawEval {
+    /// Axial force N [N], tension positive.
+    pub force: f64,
+    /// dN/dl [N/m]: the material part K_0 of the tangent stiffness uses it.
+    pub stiffness: f64,
+}
+
+/// A member's constitutive law, stateless: all parameters live in the implementing value,
+/// the rest length is passed in so that one law value serves many members.
+pub trait ForceLaw: Send + Sync + std::fmt::Debug {
+    /// Force and stiffness at length `l` for rest length `l0` (both in m).
+    fn eval(&self, l: f64, l0: f64) -> LawEval;
+    /// Strain energy ∫ N dl from the force-free length to `l` [J].
+    fn energy(&self, l: f64, l0: f64) -> f64;
+    /// ∂N/∂l0 at fixed `l`: rest-length substitution solves N(l, l0) = N* for l0 with it.
+    fn d_force_d_rest(&self, l: f64, l0: f64) -> f64;
+    /// Short name for errors and outputs.
+    fn name(&self) -> &'static str;
+}

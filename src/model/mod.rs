@@ -1,0 +1,102 @@
+//! Topology and geometry of a tensegrity: nodes, members, supports, named groups.
+//! A [`Model`] knows nothing of materials; laws and rest lengths live in
+//! [`crate::tsm::Elements`] so that one model serves form-finding and every real-material
+//! stage of a sweep.
+
+pub mod generate;
+mod validate;
+
+use nalgebra::Vector3;
+use std::collections::BTreeMap;
+
+pub use validate::ModelError;
+
+/// The three coordinate directions, for DOF labels and support flags.
+pub const AXES: [&str; 3] = ["x", "y", "z"];
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum MemberKind {
+    /// Compression member (brown in the paper's figures).
+    Strut,
+    /// Tension member (red when taut, grey when slack).
+    Cable,
+}
+
+impl MemberKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            MemberKind::Strut => "strut",
+            MemberKind::Cable => "cable",
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Member {
+    pub id: String,
+    /// Indices into [`Model::nodes`].
+    pub nodes: [usize; 2],
+    pub kind: MemberKind,
+    /// Member groups, e.g. `ring`, `side`, `saddle`; form-finding may set C per group.
+    pub groups: Vec<String>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Node {
+    pub id: String,
+    /// Initial coordinates [m].
+    pub xyz: Vector3<f64>,
+    /// Supported (fixed) directions.
+    pub support: [bool; 3],
+}
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Model {
+    pub nodes: Vec<Node>,
+    pub members: Vec<Member>,
+    /// Named node groups (`base`, `middle`, `top`, ...), node indices in order.
+    pub node_groups: BTreeMap<String, Vec<usize>>,
+}
+
+impl Model {
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    pub fn positions(&self) -> Vec<Vector3<f64>> {
+        self.nodes.iter().map(|n| n.xyz).collect()
+    }
+
+    pub fn node_index(&self, id: &str) -> Option<usize> {
+        self.nodes.iter().position(|n| n.id == id)
+    }
+
+    /// Number of supported directions.
+    pub fn support_count(&self) -> usize {
+        self.nodes.iter().map(|n| n.support.iter().filter(|&&s| s).count()).sum()
+    }
+
+    /// Nodes of a group, or an error naming the group and the ones that exist.
+    pub fn group(&self, name: &str) -> Result<&[usize], ModelError> {
+        self.node_groups.get(name).map(Vec::as_slice).ok_or_else(|| ModelError::UnknownGroup {
+            group: name.to_string(),
+            known: self.node_groups.keys().cloned().collect::<Vec<_>>().join(", "),
+        })
+    }
+
+    /// Members belonging to a member group.
+    pub fn members_in_group<'a>(&'a self, group: &'a str) -> impl Iterator<Item = usize> + 'a {
+        self.members.iter().enumerate().filter(move |(_, m)| m.groups.iter().any(|g| g == group)).map(|(i, _)| i)
+    }
+
+    /// Largest distance between two nodes' bounding-box corners: the model's length scale.
+    pub fn size(&self) -> f64 {
+        let mut lo = Vector3::repeat(f64::INFINITY);
+        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+        for n in &self.nodes {
+            lo = lo.inf(&n.xyz);
+            hi = hi.sup(&n.xyz);
+        }
+        (hi - lo).norm()
+    }
+}

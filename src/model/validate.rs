@@ -1,0 +1,109 @@
+//! Checks run when a model is loaded: every error names the offending item and the fix.
+
+use super::Model;
+use nalgebra::{Matrix6, Vector3};
+use std::collections::HashMap;
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ModelError {
+    #[error("node id `{node}` is used twice; give every node a unique id")]
+    DuplicateNode { node: String },
+    #[error("member `{member}` refers to unknown node `{node}`; define the node or fix the id")]
+    UnknownNode { member: String, node: String },
+    #[error("member `{member}` has zero length (nodes `{a}` and `{b}` coincide); move a node or remove the member")]
+    ZeroLength { member: String, a: String, b: String },
+    #[error("members `{member}` and `{other}` join the same nodes `{a}` and `{b}`; remove one of them")]
+    DuplicateMember { member: String, other: String, a: String, b: String },
+    #[error("node `{node}` has no members; connect it or remove it")]
+    UnusedNode { node: String },
+    #[error("node group `{group}` names unknown node `{node}`")]
+    UnknownGroupNode { group: String, node: String },
+    #[error("unknown node group `{group}`; the model has: {known}")]
+    UnknownGroup { group: String, known: String },
+    #[error("the supports leave rigid-body motion free ({motion}); support more directions, e.g. fix x and y of one base node and one more in-plane direction of another")]
+    RigidBodyFree { motion: String },
+}
+
+impl Model {
+    /// Validates topology and supports. Called by every constructor of models from input.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        let mut seen = HashMap::new();
+        for n in &self.nodes {
+            if seen.insert(n.id.as_str(), ()).is_some() {
+                return Err(ModelError::DuplicateNode { node: n.id.clone() });
+            }
+        }
+        let mut used = vec![false; self.nodes.len()];
+        let mut pairs: HashMap<(usize, usize), &str> = HashMap::new();
+        for m in &self.members {
+            let [a, b] = m.nodes;
+            let (na, nb) = (&self.nodes[a], &self.nodes[b]);
+            if a == b || (na.xyz - nb.xyz).norm() <= 1e-12 * self.size().max(1.0) {
+                return Err(ModelError::ZeroLength { member: m.id.clone(), a: na.id.clone(), b: nb.id.clone() });
+            }
+            if let Some(other) = pairs.insert((a.min(b), a.max(b)), &m.id) {
+                return Err(ModelError::DuplicateMember {
+                    member: m.id.clone(),
+                    other: other.to_string(),
+                    a: na.id.clone(),
+                    b: nb.id.clone(),
+                });
+            }
+            used[a] = true;
+            used[b] = true;
+        }
+        if let Some(i) = used.iter().position(|u| !u) {
+            return Err(ModelError::UnusedNode { node: self.nodes[i].id.clone() });
+        }
+        self.check_rigid_body_supports()
+    }
+
+    /// The six rigid-body motions (translations, rotations about the centroid) must each
+    /// move at least one supported direction. Works on the Gram matrix of the motions
+    /// restricted to supported DOFs; a near-zero eigenvalue is a free motion, named by its
+    /// largest component.
+    fn check_rigid_body_supports(&self) -> Result<(), ModelError> {
+        let n = self.nodes.len().max(1) as f64;
+        let centroid = self.nodes.iter().fold(Vector3::zeros(), |s, nd| s + nd.xyz) / n;
+        let scale = self.size().max(1e-12);
+        let mut gram = Matrix6::<f64>::zeros();
+        for nd in &self.nodes {
+            let r = (nd.xyz - centroid) / scale;
+            for (d, &fixed) in nd.support.iter().enumerate() {
+                if !fixed {
+                    continue;
+                }
+                // Component d of each rigid motion at this node: translations e_k, rotations ω_k × r.
+                let mut row = [0.0; 6];
+                row[d] = 1.0;
+                for k in 0..3 {
+                    let mut w = Vector3::zeros();
+                    w[k] = 1.0;
+                    row[3 + k] = w.cross(&r)[d];
+                }
+                for i in 0..6 {
+                    for j in 0..6 {
+                        gram[(i, j)] += row[i] * row[j];
+                    }
+                }
+            }
+        }
+        let eig = gram.symmetric_eigen();
+        // Rotation columns are scaled by r/size ≤ 1, so a supported motion has an
+        // eigenvalue of order (r/size)², far above 1e-10 for any sensible geometry.
+        let names = ["translation along x", "translation along y", "translation along z", "rotation about x", "rotation about y", "rotation about z"];
+        let free: Vec<&str> = (0..6)
+            .filter(|&k| eig.eigenvalues[k] < 1e-10)
+            .map(|k| {
+                let v = eig.eigenvectors.column(k);
+                let i = (0..6).max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs())).unwrap_or(0);
+                names[i]
+            })
+            .collect();
+        if free.is_empty() {
+            Ok(())
+        } else {
+            Err(ModelError::RigidBodyFree { motion: free.join(", ") })
+        }
+    }
+}

@@ -1,0 +1,121 @@
+//! Recorders see only converged states: a stage calls them after each converged step,
+//! never with a Newton trial (OpenSees' commit-then-record). Each output format is one
+//! implementation of [`Recorder`]; [`Recorders`] fans out to several.
+
+use crate::model::Model;
+use nalgebra::Vector3;
+
+/// The stages as outputs name them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    FormFinding,
+    Eigen,
+    FreeVibration,
+    Folding,
+    Deployment,
+}
+
+impl Stage {
+    /// Group / topic name: `formfinding`, `eigen`, `free_vibration`, `folding`, `deployment`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::FormFinding => "formfinding",
+            Stage::Eigen => "eigen",
+            Stage::FreeVibration => "free_vibration",
+            Stage::Folding => "folding",
+            Stage::Deployment => "deployment",
+        }
+    }
+}
+
+/// The energy ledger of one converged step [J].
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Energy {
+    pub kinetic: f64,
+    pub strain: f64,
+    /// Dissipated by damping since the stage began.
+    pub damping: f64,
+    /// Work of external loads (and, in folding, of prescribed displacements) since the stage began.
+    pub external: f64,
+}
+
+/// One converged step of a time-stepping stage.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame<'a> {
+    /// Step index within the stage (0 = the initial state).
+    pub step: usize,
+    /// Simulated time within the stage [s]; for folding, the applied fraction of the
+    /// prescribed displacement (0..1).
+    pub time: f64,
+    pub positions: &'a [Vector3<f64>],
+    /// Node velocities [m/s]; `None` for static stages.
+    pub velocities: Option<&'a [Vector3<f64>]>,
+    pub forces: &'a [f64],
+    pub lengths: &'a [f64],
+    pub energy: Energy,
+}
+
+/// Static description of the model written once per case.
+#[derive(Clone, Copy, Debug)]
+pub struct ModelRecord<'a> {
+    pub model: &'a Model,
+    /// Real-material rest lengths [m].
+    pub rest_lengths: &'a [f64],
+    /// Lumped nodal masses [kg].
+    pub masses: &'a [f64],
+}
+
+/// Results of form-finding.
+#[derive(Clone, Copy, Debug)]
+pub struct FormFindRecord<'a> {
+    pub residuals: &'a [f64],
+    pub positions: &'a [Vector3<f64>],
+    pub forces: &'a [f64],
+}
+
+/// Results of the eigen analysis.
+#[derive(Clone, Copy, Debug)]
+pub struct EigenRecord<'a> {
+    /// ω² ascending [rad²/s²].
+    pub omega2: &'a [f64],
+    /// Mass-normalised mode shapes, `mode_shapes[mode][node]` [m·kg^-1/2].
+    pub mode_shapes: &'a [Vec<Vector3<f64>>],
+    pub rayleigh_alpha: f64,
+    pub rayleigh_beta: f64,
+    /// 1-based mode numbers the damping came from (empty when α, β were given).
+    pub damping_modes: &'a [usize],
+    pub damping_ratio: &'a [f64],
+}
+
+pub type RecordResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;
+
+/// A sink for results. Stages call, in order: `model`, `formfinding`, `eigen`, then for
+/// each time-stepping stage `begin_stage`, `frame`…, `end_stage`; `finish` last.
+pub trait Recorder {
+    fn model(&mut self, _record: &ModelRecord) -> RecordResult {
+        Ok(())
+    }
+    fn formfinding(&mut self, _record: &FormFindRecord) -> RecordResult {
+        Ok(())
+    }
+    fn eigen(&mut self, _record: &EigenRecord) -> RecordResult {
+        Ok(())
+    }
+    fn begin_stage(&mut self, _stage: Stage) -> RecordResult {
+        Ok(())
+    }
+    fn frame(&mut self, _frame: &Frame) -> RecordResult {
+        Ok(())
+    }
+    fn end_stage(&mut self, _stage: Stage) -> RecordResult {
+        Ok(())
+    }
+    /// `status` is "complete" or "failed: <reason>".
+    fn finish(&mut self, _status: &str) -> RecordResult {
+        Ok(())
+    }
+}
+
+/// Records nothing: a pipeline run without outputs.
+pub struct NoRecorder;
+impl Recorder for NoRecorder {}

@@ -1,0 +1,95 @@
+use super::linear::{solve_dense, LinearError};
+use faer::Mat;
+
+/// Convergence settings of the Newton-Raphson driver (one struct for every stage).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NewtonSettings {
+    /// Iteration cap; beyond it the solve fails (stages may then cut the step). Default 50:
+    /// Newton on these problems converges in under 10 iterations when it converges at all.
+    pub max_iterations: usize,
+    /// Residual tolerance relative to the force scale (largest member or applied force).
+    /// Default 1e-10.
+    pub force_tolerance: f64,
+    /// Tolerance on the last increment, relative to the model size. Default 1e-10.
+    pub displacement_tolerance: f64,
+}
+
+impl Default for NewtonSettings {
+    fn default() -> Self {
+        NewtonSettings { max_iterations: 50, force_tolerance: 1e-10, displacement_tolerance: 1e-10 }
+    }
+}
+
+/// What makes a residual small: the force level, and the round-off floor below which no
+/// residual can be resolved (stiff struts: EA·ε·l is ~1e-4 N for the form-finding struts).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scale {
+    pub force: f64,
+    pub roundoff: f64,
+}
+
+/// A nonlinear problem on the free DOFs: r(u) = external − internal (− inertia − damping)
+/// and its tangent K = −∂r/∂u.
+pub trait Residual {
+    fn evaluate(&mut self, u: &[f64], r: &mut [f64], k: &mut Mat<f64>) -> Scale;
+}
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NewtonReport {
+    pub iterations: usize,
+    /// max |r| at each evaluation, the first at the starting point [N].
+    pub residuals: Vec<f64>,
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SolveError {
+    #[error("Newton did not converge in {iterations} iterations: residual {residual:.3e} N (tolerance {tolerance:.3e} N), last increment {increment:.3e} m")]
+    NotConverged { iterations: usize, residual: f64, tolerance: f64, increment: f64 },
+    #[error("residual became non-finite at iteration {iteration} (diverged)")]
+    NonFinite { iteration: usize },
+    #[error("singular tangent stiffness at {dof} (pivot ratio {ratio:.1e}): a mechanism or instability there")]
+    Singular { dof: String, ratio: f64 },
+}
+
+/// The Newton-Raphson driver: solves r(u) = 0 from the given `u` (updated in place).
+/// Converged when max|r| ≤ tol_f·force + roundoff and the last increment max|Δu| ≤
+/// tol_u·`length` (a start already in balance needs no increment).
+/// `label` names a free DOF for error messages.
+pub fn newton(
+    problem: &mut impl Residual,
+    u: &mut [f64],
+    settings: &NewtonSettings,
+    length: f64,
+    label: &dyn Fn(usize) -> String,
+) -> Result<NewtonReport, SolveError> {
+    let n = u.len();
+    let mut r = vec![0.0; n];
+    let mut k = Mat::zeros(n, n);
+    let mut report = NewtonReport::default();
+    let mut increment = 0.0;
+    let disp_tol = settings.displacement_tolerance * length;
+    for iteration in 0..=settings.max_iterations {
+        k.fill(0.0);
+        let scale = problem.evaluate(u, &mut r, &mut k);
+        let res = r.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        report.residuals.push(res);
+        if !res.is_finite() {
+            return Err(SolveError::NonFinite { iteration });
+        }
+        let tolerance = settings.force_tolerance * scale.force + scale.roundoff;
+        if res <= tolerance && (iteration == 0 || increment <= disp_tol) {
+            report.iterations = iteration;
+            return Ok(report);
+        }
+        if iteration == settings.max_iterations {
+            return Err(SolveError::NotConverged { iterations: iteration, residual: res, tolerance, increment });
+        }
+        solve_dense(&k, &mut r).map_err(|LinearError::Singular { dof, ratio }| SolveError::Singular { dof: label(dof), ratio })?;
+        increment = r.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        for (ui, di) in u.iter_mut().zip(&r) {
+            *ui += di;
+        }
+    }
+    unreachable!("the loop returns at its last iteration")
+}

@@ -1,0 +1,10 @@
+//! The pipeline's stages, each a small driver on top of [`crate::tsm`] (forces and
+//! tangents) and [`crate::solve`] (the Newton driver). A stage takes a converged state and
+//! hands the next one a converged state.
+
+pub mod formfind;
+pub mod measure;
+pub mod substitute;
+mod statics;
+
+pub use statics::StaticEquilibrium;

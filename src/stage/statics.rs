@@ -1,0 +1,23 @@
+use crate::solve::{Residual, Scale};
+use crate::tsm::Assembly;
+use faer::Mat;
+
+/// Static nodal equilibrium r(u) = f_ext − p(u) with tangent K_T: the problem of
+/// form-finding and of every folding step.
+pub struct StaticEquilibrium<'a> {
+    pub asm: Assembly<'a>,
+    /// External load on the free DOFs [N].
+    pub load: Vec<f64>,
+}
+
+impl Residual for StaticEquilibrium<'_> {
+    fn evaluate(&mut self, u: &[f64], r: &mut [f64], k: &mut Mat<f64>) -> Scale {
+        self.asm.set_free(u);
+        for (i, ri) in r.iter_mut().enumerate() {
+            *ri = self.load[i] - self.asm.p_free(i);
+        }
+        self.asm.add_tangent(1.0, k);
+        let applied = self.load.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        self.asm.scale(applied)
+    }
+}

@@ -1,0 +1,89 @@
+//! Substitution by real materials (paper §3.1, end): each member gets the rest length at
+//! which its real law carries the form-found force at the form-found length, so the real
+//! structure is in equilibrium in the same shape.
+
+use crate::error::{Error, Result};
+use crate::law::ForceLaw;
+use crate::model::Model;
+use crate::tsm::{Assembly, DofMap, Elements};
+use nalgebra::Vector3;
+use std::sync::Arc;
+
+/// Real-material elements and how well they balance at the form-found shape.
+#[derive(Clone, Debug)]
+pub struct Substituted {
+    pub elements: Elements,
+    /// max |out-of-balance force| on the free DOFs at the form-found shape [N].
+    pub residual: f64,
+    /// Largest |member force| [N], the scale of `residual`.
+    pub max_force: f64,
+}
+
+/// Rest lengths for `laws` so that member m carries `scale · forces[m]` at the lengths of
+/// `positions`; then the equilibrium residual of the result.
+pub fn substitute(
+    model: &Model,
+    positions: &[Vector3<f64>],
+    forces: &[f64],
+    laws: Vec<Arc<dyn ForceLaw>>,
+    scale: f64,
+) -> Result<Substituted> {
+    let mut rest = Vec::with_capacity(model.members.len());
+    for (m, mem) in model.members.iter().enumerate() {
+        let l = (positions[mem.nodes[1]] - positions[mem.nodes[0]]).norm();
+        let l0 = rest_length(laws[m].as_ref(), l, scale * forces[m])
+            .map_err(|reason| Error::Substitution { member: mem.id.clone(), reason })?;
+        rest.push(l0);
+    }
+    let elements = Elements { laws, rest };
+    let dofs = DofMap::new(model, &[]);
+    let asm = Assembly::new(model, &elements, &dofs, positions.to_vec());
+    let residual = asm.max_free_residual();
+    let max_force = asm.states.iter().map(|s| s.force.abs()).fold(0.0, f64::max);
+    Ok(Substituted { elements, residual, max_force })
+}
+
+/// Solves N(l, l0) = target for l0 by Newton safeguarded with a bracket. Every law here
+/// has N decreasing in l0 (a longer rest length means less tension), so the bracket is
+/// found by halving or doubling l0 from l, where N is about zero.
+pub fn rest_length(law: &dyn ForceLaw, l: f64, target: f64) -> std::result::Result<f64, String> {
+    let f = |l0: f64| law.eval(l, l0).force - target;
+    let (mut lo, mut hi) = (l, l);
+    // 200 halvings/doublings reach any l0 in (l·1e-60, l·1e60): a failure here means the
+    // law cannot carry the target force at this length at all.
+    let mut found = false;
+    for _ in 0..200 {
+        if f(lo) >= 0.0 && f(hi) <= 0.0 {
+            found = true;
+            break;
+        }
+        if f(lo) < 0.0 {
+            lo *= 0.5;
+        }
+        if f(hi) > 0.0 {
+            hi *= 2.0;
+        }
+    }
+    if !found {
+        return Err(format!(
+            "the {} law cannot carry {target:.6e} N at length {l:.6} m for any rest length (a tension-only member asked for compression?)",
+            law.name()
+        ));
+    }
+    let tol = 1e-14 * target.abs().max(1e-300);
+    let mut l0 = 0.5 * (lo + hi);
+    for _ in 0..200 {
+        let r = f(l0);
+        if r.abs() <= tol || hi - lo <= 4.0 * f64::EPSILON * hi {
+            return Ok(l0);
+        }
+        if r > 0.0 {
+            lo = l0;
+        } else {
+            hi = l0;
+        }
+        let step = l0 - r / law.d_force_d_rest(l, l0);
+        l0 = if step > lo && step < hi { step } else { 0.5 * (lo + hi) };
+    }
+    Ok(l0)
+}

@@ -1,0 +1,79 @@
+use super::{assemble_tangent, internal_force, member_states, DofMap, Elements, MemberState};
+use crate::model::Model;
+use crate::solve::Scale;
+use faer::Mat;
+use nalgebra::Vector3;
+
+/// A structure evaluated at one configuration: positions of every node (supported and
+/// prescribed ones hold their imposed values), member states and internal forces.
+/// Stages update the free coordinates from a Newton iterate and read forces and tangents;
+/// the buffers are reused across iterations and steps.
+pub struct Assembly<'a> {
+    pub model: &'a Model,
+    pub elements: &'a Elements,
+    pub dofs: &'a DofMap,
+    pub x: Vec<Vector3<f64>>,
+    pub states: Vec<MemberState>,
+    /// Internal force over all 3n directions.
+    pub p: Vec<f64>,
+}
+
+impl<'a> Assembly<'a> {
+    pub fn new(model: &'a Model, elements: &'a Elements, dofs: &'a DofMap, x: Vec<Vector3<f64>>) -> Self {
+        let mut a = Assembly { model, elements, dofs, x, states: Vec::new(), p: vec![0.0; 3 * model.node_count()] };
+        a.update();
+        a
+    }
+
+    /// Re-evaluates member states and internal forces at the current `x`.
+    pub fn update(&mut self) {
+        member_states(self.model, self.elements, &self.x, &mut self.states);
+        internal_force(self.model, &self.states, &mut self.p);
+    }
+
+    /// Writes the free coordinates `u` into `x` and re-evaluates.
+    pub fn set_free(&mut self, u: &[f64]) {
+        for (i, &v) in u.iter().enumerate() {
+            let (n, a) = self.dofs.owner(i);
+            self.x[n][a] = v;
+        }
+        self.update();
+    }
+
+    /// Free coordinates of the current `x`.
+    pub fn free_coordinates(&self) -> Vec<f64> {
+        (0..self.dofs.len())
+            .map(|i| {
+                let (n, a) = self.dofs.owner(i);
+                self.x[n][a]
+            })
+            .collect()
+    }
+
+    /// Adds `factor`·K_T on the free DOFs.
+    pub fn add_tangent(&self, factor: f64, k: &mut Mat<f64>) {
+        assemble_tangent(self.model, &self.states, self.dofs, factor, k);
+    }
+
+    /// Internal force on free DOF `i`.
+    pub fn p_free(&self, i: usize) -> f64 {
+        let (n, a) = self.dofs.owner(i);
+        self.p[3 * n + a]
+    }
+
+    /// Force level and round-off floor of the current state. The floor is what an ulp
+    /// of length does to the stiffest member: 64 ε (|dN/dl|·l + |N|), 64 leaving room
+    /// for the summation over a node's members.
+    pub fn scale(&self, applied: f64) -> Scale {
+        let (force, stiff) = self.states.iter().fold((applied, 0.0_f64), |(f, s), m| {
+            (f.max(m.force.abs()), s.max(m.stiffness.abs() * m.length + m.force.abs()))
+        });
+        Scale { force, roundoff: 64.0 * f64::EPSILON * stiff }
+    }
+
+    /// Largest |internal force| on the free DOFs: the out-of-balance of a self-stressed
+    /// structure with no load.
+    pub fn max_free_residual(&self) -> f64 {
+        (0..self.dofs.len()).map(|i| self.p_free(i).abs()).fold(0.0, f64::max)
+    }
+}

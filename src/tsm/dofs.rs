@@ -1,0 +1,60 @@
+use crate::model::{Model, AXES};
+
+/// Numbering of the free degrees of freedom: node directions that are neither supported
+/// nor prescribed. Everything the solvers see is indexed by it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DofMap {
+    /// For each node direction 3·node + axis, its free index.
+    index: Vec<Option<usize>>,
+    /// For each free index, (node, axis).
+    owner: Vec<(usize, usize)>,
+}
+
+impl DofMap {
+    /// Free DOFs of `model`, less the directions flagged in `prescribed` (per node, may
+    /// be empty for none).
+    pub fn new(model: &Model, prescribed: &[[bool; 3]]) -> Self {
+        let mut index = Vec::with_capacity(3 * model.node_count());
+        let mut owner = Vec::new();
+        for (i, node) in model.nodes.iter().enumerate() {
+            for axis in 0..3 {
+                let fixed = node.support[axis] || prescribed.get(i).is_some_and(|p| p[axis]);
+                index.push((!fixed).then(|| {
+                    owner.push((i, axis));
+                    owner.len() - 1
+                }));
+            }
+        }
+        DofMap { index, owner }
+    }
+
+    pub fn len(&self) -> usize {
+        self.owner.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.owner.is_empty()
+    }
+
+    pub fn free(&self, node: usize, axis: usize) -> Option<usize> {
+        self.index[3 * node + axis]
+    }
+
+    /// (node, axis) of a free index.
+    pub fn owner(&self, dof: usize) -> (usize, usize) {
+        self.owner[dof]
+    }
+
+    /// "node `t3` direction z", for error messages.
+    pub fn label(&self, model: &Model, dof: usize) -> String {
+        let (n, a) = self.owner[dof];
+        format!("node `{}` direction {}", model.nodes[n].id, AXES[a])
+    }
+
+    /// Copies the free entries of a full 3n vector.
+    pub fn gather(&self, full: &[f64], free: &mut [f64]) {
+        for (f, &(n, a)) in free.iter_mut().zip(&self.owner) {
+            *f = full[3 * n + a];
+        }
+    }
+}

@@ -1,0 +1,113 @@
+//! The common scheme of the paper: one element force equation per member
+//! ([`crate::law::ForceLaw`]) and one tangent stiffness, K_T = K_G + K_0 (eqs 4, 10),
+//! evaluated the same way by every stage.
+//!
+//! For member (i, j) with unit vector J = (x_j − x_i)/l, the internal (resisting) force is
+//! p_i = −N J, p_j = +N J, and its derivative is the 6×6 block
+//! [[k, −k], [−k, k]] with k = (N/l)(e − J Jᵀ) + (dN/dl) J Jᵀ:
+//! the geometric part K_G keeps rigid-body rotations exact; the material part K_0 carries
+//! the law's stiffness.
+
+mod assembly;
+mod dofs;
+
+pub use assembly::Assembly;
+pub use dofs::DofMap;
+
+use crate::law::ForceLaw;
+use crate::model::Model;
+use nalgebra::{Matrix3, Vector3};
+use std::sync::Arc;
+
+/// Per-member constitutive data: the law and the non-stressed length it is evaluated with.
+#[derive(Clone, Debug)]
+pub struct Elements {
+    pub laws: Vec<Arc<dyn ForceLaw>>,
+    /// Rest (non-stressed) length l0 of each member [m].
+    pub rest: Vec<f64>,
+}
+
+impl Elements {
+    /// Strain energy of all members at positions `x` [J].
+    pub fn strain_energy(&self, model: &Model, x: &[Vector3<f64>]) -> f64 {
+        model
+            .members
+            .iter()
+            .enumerate()
+            .map(|(m, mem)| self.laws[m].energy((x[mem.nodes[1]] - x[mem.nodes[0]]).norm(), self.rest[m]))
+            .sum()
+    }
+}
+
+/// A member's state at one configuration.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MemberState {
+    pub length: f64,
+    /// Unit vector from the first to the second node.
+    pub dir: Vector3<f64>,
+    /// Axial force N [N], tension positive.
+    pub force: f64,
+    /// dN/dl [N/m].
+    pub stiffness: f64,
+}
+
+/// Receives tangent stiffness entries (free-DOF row, free-DOF column, value): a dense
+/// matrix or a sparse triplet list.
+pub trait TangentSink {
+    fn add(&mut self, row: usize, col: usize, value: f64);
+}
+
+impl TangentSink for faer::Mat<f64> {
+    fn add(&mut self, row: usize, col: usize, value: f64) {
+        self[(row, col)] += value;
+    }
+}
+
+/// Evaluates every member at positions `x` into `states` (reused buffer).
+pub fn member_states(model: &Model, elements: &Elements, x: &[Vector3<f64>], states: &mut Vec<MemberState>) {
+    states.clear();
+    states.extend(model.members.iter().enumerate().map(|(m, mem)| {
+        let d = x[mem.nodes[1]] - x[mem.nodes[0]];
+        let length = d.norm();
+        let e = elements.laws[m].eval(length, elements.rest[m]);
+        MemberState { length, dir: d / length, force: e.force, stiffness: e.stiffness }
+    }));
+}
+
+/// Internal force vector over all 3n node directions (supported ones included: there it
+/// is the support reaction needed).
+pub fn internal_force(model: &Model, states: &[MemberState], p: &mut [f64]) {
+    p.fill(0.0);
+    for (mem, s) in model.members.iter().zip(states) {
+        let f = s.force * s.dir;
+        for k in 0..3 {
+            p[3 * mem.nodes[0] + k] -= f[k];
+            p[3 * mem.nodes[1] + k] += f[k];
+        }
+    }
+}
+
+/// The 3×3 member block k = (N/l)(e − J Jᵀ) + (dN/dl) J Jᵀ.
+pub fn member_block(s: &MemberState) -> Matrix3<f64> {
+    let jj = s.dir * s.dir.transpose();
+    (Matrix3::identity() - jj) * (s.force / s.length) + jj * s.stiffness
+}
+
+/// Adds K_T = K_G + K_0 over all members, on the free DOFs of `dofs`, scaled by `factor`
+/// (Newmark adds it next to mass and damping terms).
+pub fn assemble_tangent(model: &Model, states: &[MemberState], dofs: &DofMap, factor: f64, sink: &mut impl TangentSink) {
+    for (mem, s) in model.members.iter().zip(states) {
+        let k = member_block(s) * factor;
+        let [a, b] = mem.nodes;
+        for (na, nb, sign) in [(a, a, 1.0), (b, b, 1.0), (a, b, -1.0), (b, a, -1.0)] {
+            for r in 0..3 {
+                let Some(row) = dofs.free(na, r) else { continue };
+                for c in 0..3 {
+                    if let Some(col) = dofs.free(nb, c) {
+                        sink.add(row, col, sign * k[(r, c)]);
+                    }
+                }
+            }
+        }
+    }
+}
