@@ -13,11 +13,16 @@ pub struct NewtonSettings {
     pub force_tolerance: f64,
     /// Tolerance on the last increment, relative to the model size. Default 1e-10.
     pub displacement_tolerance: f64,
+    /// Largest increment of one iteration, relative to the model size; a longer Newton
+    /// step is scaled down to it (damped Newton). Stiff struts next to soft cables make
+    /// the first linearised steps overshoot wildly from a far start; capping them keeps
+    /// form-finding on the equilibrium nearest its start. Default 0.05.
+    pub max_step: f64,
 }
 
 impl Default for NewtonSettings {
     fn default() -> Self {
-        NewtonSettings { max_iterations: 50, force_tolerance: 1e-10, displacement_tolerance: 1e-10 }
+        NewtonSettings { max_iterations: 50, force_tolerance: 1e-10, displacement_tolerance: 1e-10, max_step: 0.05 }
     }
 }
 
@@ -87,8 +92,9 @@ pub fn newton(
         }
         solve_dense(&k, &mut r).map_err(|LinearError::Singular { dof, ratio }| SolveError::Singular { dof: label(dof), ratio })?;
         increment = r.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        let damping = (settings.max_step * length / increment).min(1.0);
         for (ui, di) in u.iter_mut().zip(&r) {
-            *ui += di;
+            *ui += damping * di;
         }
     }
     unreachable!("the loop returns at its last iteration")

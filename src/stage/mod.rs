@@ -2,6 +2,7 @@
 //! tangents) and [`crate::solve`] (the Newton driver). A stage takes a converged state and
 //! hands the next one a converged state.
 
+pub mod eigen;
 pub mod formfind;
 pub mod measure;
 pub mod substitute;

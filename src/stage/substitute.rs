@@ -4,10 +4,54 @@
 
 use crate::error::{Error, Result};
 use crate::law::ForceLaw;
-use crate::model::Model;
+use crate::model::{MemberKind, Model};
 use crate::tsm::{Assembly, DofMap, Elements};
+use faer::linalg::solvers::Solve;
+use faer::Mat;
 use nalgebra::Vector3;
 use std::sync::Arc;
+
+/// Member forces of a form-found shape, made to balance exactly.
+///
+/// A form-finding strut is a virtual spring of stiffness EA/l0 ≈ 3e10 N/m: one ulp of its
+/// length is ~1e-4 N of force, so the forces the laws give at the converged shape leave an
+/// out-of-balance of that size however far Newton iterates. The soft cables' forces are
+/// exact to round-off. So the strut forces are recovered from statics: the correction δ
+/// that minimises |A_s δ + r| (A_s the struts' columns of the equilibrium matrix on the
+/// free DOFs, r the out-of-balance), a small normal-equations solve (one unknown per strut).
+pub fn balanced_forces(model: &Model, positions: &[Vector3<f64>], forces: &[f64]) -> Vec<f64> {
+    let dofs = DofMap::new(model, &[]);
+    let struts: Vec<usize> = (0..model.members.len()).filter(|&m| model.members[m].kind == MemberKind::Strut).collect();
+    if struts.is_empty() {
+        return forces.to_vec();
+    }
+    // Column of member m: ∂p/∂N_m = −J at its first node, +J at its second.
+    let mut a = Mat::<f64>::zeros(dofs.len(), struts.len());
+    let mut r = Mat::<f64>::zeros(dofs.len(), 1);
+    for (m, mem) in model.members.iter().enumerate() {
+        let d = positions[mem.nodes[1]] - positions[mem.nodes[0]];
+        let j = d / d.norm();
+        let col = struts.iter().position(|&s| s == m);
+        for (node, sign) in [(mem.nodes[0], -1.0), (mem.nodes[1], 1.0)] {
+            for ax in 0..3 {
+                if let Some(i) = dofs.free(node, ax) {
+                    r[(i, 0)] += sign * j[ax] * forces[m];
+                    if let Some(c) = col {
+                        a[(i, c)] += sign * j[ax];
+                    }
+                }
+            }
+        }
+    }
+    let normal = a.transpose() * &a;
+    let mut delta = -(a.transpose() * &r);
+    normal.partial_piv_lu().solve_in_place(delta.as_mut());
+    let mut out = forces.to_vec();
+    for (c, &m) in struts.iter().enumerate() {
+        out[m] += delta[(c, 0)];
+    }
+    out
+}
 
 /// Real-material elements and how well they balance at the form-found shape.
 #[derive(Clone, Debug)]
