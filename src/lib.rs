@@ -4,9 +4,12 @@
 //! stage ([`stage`]): form-finding, substitution by real materials, eigen analysis, free
 //! vibration, folding and deployment, all solved by one Newton driver ([`solve`]).
 
+pub mod config;
+pub mod dynamics;
 pub mod error;
 pub mod law;
 pub mod model;
+pub mod pipeline;
 pub mod record;
 pub mod solve;
 pub mod stage;

@@ -3,9 +3,11 @@
 //! hands the next one a converged state.
 
 pub mod eigen;
+pub mod fold;
 pub mod formfind;
 pub mod measure;
 pub mod substitute;
 mod statics;
+pub mod transient;
 
 pub use statics::StaticEquilibrium;

@@ -1,0 +1,295 @@
+use super::materials::MaterialSpec;
+use crate::dynamics::{DampingTangent, LoadProfile};
+use crate::model::generate::TowerSpec;
+use crate::model::MemberKind;
+use crate::solve::NewtonSettings;
+use crate::stage::measure::MeasureSpec;
+use std::collections::BTreeMap;
+
+/// One case: a model and the pipeline to run on it. A stage section left out is skipped.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CaseConfig {
+    /// Case name (the sweep's name when the file has a `sweep`).
+    pub name: String,
+    pub model: ModelSpec,
+    /// Materials added to (or overriding) the built-in library, by name.
+    #[serde(default)]
+    pub materials: BTreeMap<String, MaterialSpec>,
+    /// Form-finding with measure potentials. Absent: the model's coordinates are taken
+    /// as the shape and every member must give `rest_length` (no substitution).
+    #[serde(default)]
+    pub formfinding: Option<FormFindingSpec>,
+    pub substitution: SubstitutionSpec,
+    #[serde(default)]
+    pub masses: MassReading,
+    #[serde(default)]
+    pub eigen: Option<EigenSpec>,
+    #[serde(default)]
+    pub free_vibration: Option<TransientSpec>,
+    #[serde(default)]
+    pub folding: Option<FoldSpec>,
+    #[serde(default)]
+    pub deployment: Option<TransientSpec>,
+    /// Newton settings shared by every stage.
+    #[serde(default)]
+    pub newton: NewtonSettings,
+    #[serde(default)]
+    pub outputs: OutputSpec,
+    /// Sweep axes (see `config::sweep`); only in a top-level file.
+    #[serde(default)]
+    pub sweep: Option<SweepSpec>,
+}
+
+/// Either a generated tower or explicit nodes and members.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSpec {
+    #[serde(default)]
+    pub tower: Option<TowerSpec>,
+    #[serde(default)]
+    pub nodes: Vec<NodeSpec>,
+    #[serde(default)]
+    pub members: Vec<MemberSpec>,
+    /// Node groups by name, node ids.
+    #[serde(default)]
+    pub groups: BTreeMap<String, Vec<String>>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Axis {
+    X,
+    Y,
+    Z,
+}
+
+impl Axis {
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NodeSpec {
+    pub id: String,
+    /// Coordinates [m].
+    pub xyz: [f64; 3],
+    /// Supported directions.
+    #[serde(default)]
+    pub fix: Vec<Axis>,
+}
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MemberSpec {
+    pub id: String,
+    pub nodes: [String; 2],
+    pub kind: MemberKind,
+    #[serde(default)]
+    pub groups: Vec<String>,
+    /// Real-material rest length [m], needed only without form-finding.
+    #[serde(default)]
+    pub rest_length: Option<f64>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FormFindingSpec {
+    #[serde(default)]
+    pub measure: MeasureSpec,
+}
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SubstitutionSpec {
+    /// Strut material name (library or `materials`).
+    pub strut: String,
+    /// Cable material name.
+    pub cable: String,
+    /// Factor on the form-found self-stress (the self-stress is defined up to a factor).
+    #[serde(default = "one")]
+    pub prestress_scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Which reading of the paper's "specific gravity" gives the masses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MassReading {
+    /// Physical densities (aluminium 2700 kg/m³, rubber 1000 kg/m³).
+    #[default]
+    Physical,
+    /// The paper's effective masses, 1000× smaller (specific gravity used as kg/m³ with
+    /// forces in N): the only reading that reproduces Table 2's magnitudes.
+    Paper,
+}
+
+impl MassReading {
+    pub fn factor(self) -> f64 {
+        match self {
+            MassReading::Physical => 1.0,
+            MassReading::Paper => 1e-3,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EigenSpec {
+    #[serde(default)]
+    pub rayleigh: RayleighSpec,
+}
+
+/// Rayleigh damping: `alpha` and `beta` given, or from two modes (`modes`, 1-based, or
+/// `auto_modes`: the two modes with the largest effective modal mass along that axis)
+/// and their damping `ratios`.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RayleighSpec {
+    #[serde(default)]
+    pub alpha: Option<f64>,
+    #[serde(default)]
+    pub beta: Option<f64>,
+    #[serde(default)]
+    pub modes: Option<[usize; 2]>,
+    #[serde(default)]
+    pub auto_modes: Option<Axis>,
+    #[serde(default)]
+    pub ratios: Option<[f64; 2]>,
+}
+
+/// A load on node groups.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadSpec {
+    pub groups: Vec<String>,
+    /// Force on each node [N].
+    pub force: [f64; 3],
+    /// [s]
+    pub duration: f64,
+    #[serde(default = "step_profile")]
+    pub profile: LoadProfile,
+}
+
+fn step_profile() -> LoadProfile {
+    LoadProfile::Step
+}
+
+/// Free vibration or deployment.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransientSpec {
+    /// Δt [s].
+    #[serde(default = "default_dt")]
+    pub dt: f64,
+    /// [s]
+    pub duration: f64,
+    #[serde(default = "quarter")]
+    pub newmark_beta: f64,
+    #[serde(default = "half")]
+    pub newmark_gamma: f64,
+    /// Rayleigh damping on (from `eigen.rayleigh`); free vibration is undamped by default.
+    #[serde(default)]
+    pub damped: bool,
+    #[serde(default)]
+    pub damping_tangent: DampingTangent,
+    #[serde(default)]
+    pub load: Option<LoadSpec>,
+    /// Halvings of a step whose Newton solve fails.
+    #[serde(default = "six")]
+    pub max_cuts: u32,
+}
+
+fn default_dt() -> f64 {
+    0.001
+}
+fn quarter() -> f64 {
+    0.25
+}
+fn half() -> f64 {
+    0.5
+}
+fn six() -> u32 {
+    6
+}
+fn ten() -> usize {
+    10
+}
+
+/// Folding by prescribed displacement.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FoldSpec {
+    #[serde(default = "ten")]
+    pub steps: usize,
+    #[serde(default = "six")]
+    pub max_cuts: u32,
+    pub prescribe: Vec<PrescribeSpec>,
+}
+
+/// One group's prescribed direction: to the base plane (`to_base: true`, each node to
+/// the mean coordinate of the `base` group along `axis`) or by `displacement` [m].
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PrescribeSpec {
+    pub group: String,
+    pub axis: Axis,
+    #[serde(default)]
+    pub to_base: bool,
+    #[serde(default)]
+    pub displacement: Option<f64>,
+}
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Record every n-th step of time-stepping stages.
+    #[serde(default = "one_usize")]
+    pub every: usize,
+    #[serde(default = "yes")]
+    pub hdf5: bool,
+    #[serde(default = "yes")]
+    pub mcap: bool,
+}
+
+fn one_usize() -> usize {
+    1
+}
+fn yes() -> bool {
+    true
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec { every: 1, hdf5: true, mcap: true }
+    }
+}
+
+/// Sweep axes, expanded as a cross product in the order given (first axis slowest).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SweepSpec {
+    pub axes: Vec<SweepAxis>,
+}
+
+/// One axis: a name for case ids and, per value, the settings it overrides, as dotted
+/// paths into the case config (e.g. `folding.steps: 20`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SweepAxis {
+    pub name: String,
+    pub values: Vec<SweepValue>,
+}
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SweepValue {
+    /// Label in case ids (letters, digits, `-`, `.`).
+    pub label: String,
+    pub set: BTreeMap<String, serde_json::Value>,
+}

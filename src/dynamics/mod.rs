@@ -1,0 +1,10 @@
+//! Time integration: Newmark-β with Rayleigh damping on the TSM internal force, every step
+//! a Newton solve by the common driver, and the energy ledger that checks it.
+
+mod load;
+mod newmark;
+mod rayleigh;
+
+pub use load::{LoadProfile, NodalLoad};
+pub use newmark::{DampingTangent, Newmark, NewmarkParams};
+pub use rayleigh::Rayleigh;
