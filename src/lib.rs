@@ -10,6 +10,7 @@ pub mod error;
 pub mod law;
 pub mod model;
 pub mod pipeline;
+pub mod run;
 pub mod record;
 pub mod solve;
 pub mod stage;

@@ -18,7 +18,7 @@ use nalgebra::Vector3;
 use std::sync::Arc;
 
 /// Key figures of every stage that ran.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct CaseSummary {
     pub formfinding: Option<FormFindSummary>,
     pub substitution: SubstitutionSummary,
@@ -28,7 +28,7 @@ pub struct CaseSummary {
     pub deployment: Option<DeploymentSummary>,
 }
 
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct FormFindSummary {
     pub iterations: usize,
     pub residuals: Vec<f64>,
@@ -39,7 +39,7 @@ pub struct FormFindSummary {
     pub max_force: f64,
 }
 
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct SubstitutionSummary {
     /// Out-of-balance of the real-material structure at the form-found shape [N].
     pub residual: f64,
@@ -52,7 +52,7 @@ pub struct SubstitutionSummary {
     pub total_mass: f64,
 }
 
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct EigenSummary {
     pub omega2: Vec<f64>,
     pub frequency_hz: Vec<f64>,
@@ -63,7 +63,7 @@ pub struct EigenSummary {
     pub rayleigh_beta: f64,
 }
 
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct DeploymentSummary {
     #[serde(flatten)]
     pub transient: TransientSummary,
@@ -72,8 +72,6 @@ pub struct DeploymentSummary {
     /// The same against the mirror image z → −z of the pre-fold shape: small when the
     /// tower deployed downwards (inverted).
     pub mirror_shape_error: f64,
-    /// Largest cable stretch λ = l/l0 at the end of deployment.
-    pub max_cable_stretch: f64,
 }
 
 fn rec_err(stage: &'static str) -> impl Fn(Box<dyn std::error::Error + Send + Sync>) -> Error {
@@ -123,13 +121,14 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     let (strut_law, cable_law) = (strut_mat.law(), cable_mat.law());
     let real_laws: Vec<Arc<dyn ForceLaw>> = model.members.iter().map(|m| if m.kind == MemberKind::Strut { strut_law.clone() } else { cable_law.clone() }).collect();
 
-    // Form-finding, then substitution; or the given rest lengths directly.
+    // Form-finding, then substitution; or the given rest lengths directly. Its record
+    // waits for the model record, which needs the real rest lengths and masses.
+    let mut formfound = None;
     let (positions, elements) = match &cfg.formfinding {
         Some(ff) => {
             let virtual_elements = ff.measure.elements(&model)?;
             let eq = form_find(&model, &virtual_elements, &cfg.newton)?;
             let forces = balanced_forces(&model, &eq.positions, &eq.forces);
-            recorder.formfinding(&FormFindRecord { residuals: &eq.report.residuals, positions: &eq.positions, forces: &forces }).map_err(rec_err("form-finding"))?;
             summary.formfinding = Some(FormFindSummary {
                 iterations: eq.report.iterations,
                 residuals: eq.report.residuals.clone(),
@@ -141,6 +140,7 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
             let sub = substitute(&model, &eq.positions, &forces, real_laws, cfg.substitution.prestress_scale)?;
             summary.substitution.residual = sub.residual;
             summary.substitution.max_force = sub.max_force;
+            formfound = Some((eq.report.residuals, forces));
             (eq.positions, sub.elements)
         }
         None => {
@@ -174,6 +174,9 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     let node_mass = lumped_masses(&model, &elements.rest, &linear_density);
     summary.substitution.total_mass = node_mass.iter().sum();
     recorder.model(&ModelRecord { model: &model, rest_lengths: &elements.rest, masses: &node_mass }).map_err(rec_err("model"))?;
+    if let Some((residuals, forces)) = &formfound {
+        recorder.formfinding(&FormFindRecord { residuals, positions: &positions, forces }).map_err(rec_err("form-finding"))?;
+    }
 
     let mut rayleigh = Rayleigh::default();
     if let Some(spec) = &cfg.eigen {
@@ -244,18 +247,9 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
             (t.final_positions.iter().zip(&positions).map(|(x, p)| (x - target(p)).norm_squared()).sum::<f64>() / positions.len() as f64).sqrt() / h
         };
         let base_z = positions.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
-        let final_asm = Assembly::new(&model, &elements, &dofs, t.final_positions.clone());
-        let max_cable_stretch = model
-            .members
-            .iter()
-            .enumerate()
-            .filter(|(_, m)| m.kind == MemberKind::Cable)
-            .map(|(k, _)| final_asm.states[k].length / elements.rest[k])
-            .fold(0.0, f64::max);
         summary.deployment = Some(DeploymentSummary {
             shape_error: rms(&|p| *p),
             mirror_shape_error: rms(&|p| Vector3::new(p.x, p.y, 2.0 * base_z - p.z)),
-            max_cable_stretch,
             transient: t,
         });
     }

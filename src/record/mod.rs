@@ -2,6 +2,12 @@
 //! never with a Newton trial (OpenSees' commit-then-record). Each output format is one
 //! implementation of [`Recorder`]; [`Recorders`] fans out to several.
 
+pub mod h5;
+pub mod replay;
+mod fanout;
+
+pub use fanout::{file_recorders, Recorders};
+
 use crate::model::Model;
 use nalgebra::Vector3;
 

@@ -27,7 +27,7 @@ pub struct Folding {
     pub newton: NewtonSettings,
 }
 
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct FoldSummary {
     pub steps: usize,
     pub newton_iterations: usize,

@@ -3,7 +3,7 @@
 
 use crate::dynamics::{DampingTangent, Newmark, NewmarkParams, NodalLoad, Rayleigh};
 use crate::error::{Error, Result};
-use crate::model::Model;
+use crate::model::{MemberKind, Model};
 use crate::record::{Frame, Recorder, Stage};
 use crate::solve::NewtonSettings;
 use crate::tsm::{Assembly, DofMap, Elements};
@@ -23,7 +23,7 @@ pub struct Transient<'a> {
 }
 
 /// Figures of a finished transient stage.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct TransientSummary {
     pub steps: usize,
     pub newton_iterations: usize,
@@ -36,6 +36,10 @@ pub struct TransientSummary {
     /// Largest rise of KE + SE from one step to the next once the load has ended [J]
     /// (damped: never positive beyond round-off).
     pub max_mechanical_rise: f64,
+    /// Largest cable stretch l/l0 over the stage.
+    pub max_cable_stretch: f64,
+    /// Largest strut compression over the stage [N] (positive number).
+    pub max_strut_compression: f64,
     #[serde(skip)]
     pub final_positions: Vec<Vector3<f64>>,
 }
@@ -100,6 +104,12 @@ impl Transient<'_> {
                 summary.max_mechanical_rise = summary.max_mechanical_rise.max(now - mechanical);
             }
             mechanical = now;
+            for ((mem, st), l0) in model.members.iter().zip(&nm.asm.states).zip(&elements.rest) {
+                match mem.kind {
+                    MemberKind::Cable => summary.max_cable_stretch = summary.max_cable_stretch.max(st.length / l0),
+                    MemberKind::Strut => summary.max_strut_compression = summary.max_strut_compression.max(-st.force),
+                }
+            }
             if step % self.every == 0 || step == steps {
                 record(&nm, step, recorder)?;
             }

@@ -1,0 +1,44 @@
+use super::{EigenRecord, FormFindRecord, Frame, ModelRecord, RecordResult, Recorder, Stage};
+use crate::config::OutputSpec;
+use std::path::Path;
+
+/// Several recorders behind one: each call goes to all, in order.
+pub struct Recorders(pub Vec<Box<dyn Recorder>>);
+
+impl Recorder for Recorders {
+    fn model(&mut self, r: &ModelRecord) -> RecordResult {
+        self.0.iter_mut().try_for_each(|x| x.model(r))
+    }
+    fn formfinding(&mut self, r: &FormFindRecord) -> RecordResult {
+        self.0.iter_mut().try_for_each(|x| x.formfinding(r))
+    }
+    fn eigen(&mut self, r: &EigenRecord) -> RecordResult {
+        self.0.iter_mut().try_for_each(|x| x.eigen(r))
+    }
+    fn begin_stage(&mut self, s: Stage) -> RecordResult {
+        self.0.iter_mut().try_for_each(|x| x.begin_stage(s))
+    }
+    fn frame(&mut self, f: &Frame) -> RecordResult {
+        self.0.iter_mut().try_for_each(|x| x.frame(f))
+    }
+    fn end_stage(&mut self, s: Stage) -> RecordResult {
+        self.0.iter_mut().try_for_each(|x| x.end_stage(s))
+    }
+    /// Finishes every recorder even if one fails, so each file gets its final status.
+    fn finish(&mut self, status: &str) -> RecordResult {
+        let results: Vec<RecordResult> = self.0.iter_mut().map(|x| x.finish(status)).collect();
+        results.into_iter().collect()
+    }
+}
+
+/// The file recorders a case's `outputs` asks for: `result.h5` and `replay.mcap` in `dir`.
+pub fn file_recorders(outputs: &OutputSpec, dir: &Path, case_id: &str, config_yaml: &str) -> Result<Vec<Box<dyn Recorder>>, Box<dyn std::error::Error + Send + Sync>> {
+    let mut out: Vec<Box<dyn Recorder>> = Vec::new();
+    if outputs.hdf5 {
+        out.push(Box::new(super::h5::Hdf5Recorder::create(&dir.join("result.h5"), case_id, config_yaml, outputs.every)?));
+    }
+    if outputs.mcap {
+        out.push(Box::new(super::replay::McapRecorder::create(&dir.join("replay.mcap"), case_id, outputs.every)?));
+    }
+    Ok(out)
+}

@@ -1,0 +1,388 @@
+//! `replay.mcap`: every stage of a case on one timeline for Foxglove (issue 4 is the
+//! contract; topic names and Foxglove schema names must not change).
+//!
+//! Topics (protobuf, zstd-compressed chunks):
+//! - `/tsim/scene` (`foxglove.SceneUpdate`): struts and cables as `LINE_LIST` primitives in
+//!   frame `world`, each member coloured by state: compression brown, tension red, slack grey
+//!   (the paper's colours).
+//! - `/tsim/energy` (`energy.Energy`): kinetic, strain, damping, external and total energy.
+//! - `/tsim/members` (`memberforces.MemberForces`): every member's id and force; in a Plot
+//!   panel, `/tsim/members.members[:]{id=="strut0_0"}.force`.
+//! - `/tsim/stage` (`stagestart.StageStart`): one message at the start of each stage.
+//!
+//! Scene, energy and members are logged together at every recorded step of a time-stepping
+//! stage; form-finding logs one scene and one members message (its equilibrium; it has no
+//! energy ledger). A metadata record `case` (case id, tsim version) opens the file and one
+//! named `status` ("complete" or "failed: <reason>") closes it; a killed process leaves a
+//! file with neither that record nor an MCAP footer.
+//!
+//! # Timeline
+//! Log time is simulated time [s] from 0, stages placed back to back in the order they run:
+//! - a static stage occupies [`STATIC_STEP`] per step: form-finding one step (its
+//!   equilibrium), eigen analysis one step (its stage message only), folding one step per
+//!   load step (log time = stage start + step × `STATIC_STEP`, the applied fraction being in
+//!   the HDF5 output);
+//! - a dynamic stage logs its frame at stage start + frame time;
+//! - each stage starts one step after the previous one's last step, a step being that
+//!   stage's last time increment (`STATIC_STEP` for static stages).
+//!
+//! Log times are strictly increasing on every topic: a computed time that does not exceed
+//! the previous one is moved 1 ns past it.
+
+use super::h5::Stride;
+use super::{Energy, FormFindRecord, Frame, ModelRecord, RecordResult, Recorder, Stage};
+use crate::model::MemberKind;
+use foxglove::messages::{line_primitive, Color, LinePrimitive, Point3, SceneEntity, SceneUpdate, Timestamp};
+use foxglove::Encode;
+use nalgebra::Vector3;
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+
+type Error = Box<dyn std::error::Error + Send + Sync>;
+
+/// Synthetic duration of one step of a static stage on the log timeline [s].
+pub const STATIC_STEP: f64 = 0.1;
+/// Line widths [px], independent of zoom so that any model size reads well.
+const STRUT_WIDTH: f64 = 6.0;
+const CABLE_WIDTH: f64 = 2.0;
+/// A member whose |force| is below this fraction of the step's largest |force| is slack.
+const SLACK_FRACTION: f64 = 1e-6;
+const BROWN: Color = Color { r: 0.55, g: 0.27, b: 0.07, a: 1.0 };
+const RED: Color = Color { r: 0.85, g: 0.10, b: 0.10, a: 1.0 };
+const GREY: Color = Color { r: 0.60, g: 0.60, b: 0.60, a: 1.0 };
+
+/// Messages of our own topics. The derive names each schema `<lowercase>.<Name>`.
+mod msg {
+    #[derive(foxglove::Encode)]
+    pub struct Energy {
+        pub stage: String,
+        pub step: u64,
+        pub kinetic: f64,
+        pub strain: f64,
+        pub damping: f64,
+        pub external: f64,
+        /// kinetic + strain + damping − external: the energy balance, constant while the
+        /// integration conserves energy.
+        pub total: f64,
+    }
+
+    #[derive(foxglove::Encode)]
+    pub struct MemberForce {
+        pub id: String,
+        pub force: f64,
+    }
+
+    #[derive(foxglove::Encode)]
+    pub struct MemberForces {
+        pub stage: String,
+        pub step: u64,
+        pub members: Vec<MemberForce>,
+    }
+
+    #[derive(foxglove::Encode)]
+    pub struct StageStart {
+        pub name: String,
+    }
+}
+
+/// Streams a case to MCAP.
+pub struct McapRecorder {
+    /// `None` once finished.
+    writer: Option<mcap::Writer<BufWriter<File>>>,
+    channels: Channels,
+    stride: Stride,
+    clock: Clock,
+    members: Vec<(String, [usize; 2], MemberKind)>,
+    stage: Option<Stage>,
+    buf: Vec<u8>,
+}
+
+struct Channels {
+    scene: u16,
+    energy: u16,
+    members: u16,
+    stage: u16,
+}
+
+impl McapRecorder {
+    /// Creates (truncates) `path`. `every` is the output stride, as for HDF5: a time-stepping
+    /// stage records the steps with `step % every == 0` and always its last step.
+    pub fn create(path: &Path, case_id: &str, every: usize) -> Result<Self, Error> {
+        let options = mcap::WriteOptions::new().compression(Some(mcap::Compression::Zstd));
+        let mut writer = options.create(BufWriter::new(File::create(path)?))?;
+        let channels = Channels {
+            scene: channel::<SceneUpdate>(&mut writer, "/tsim/scene")?,
+            energy: channel::<msg::Energy>(&mut writer, "/tsim/energy")?,
+            members: channel::<msg::MemberForces>(&mut writer, "/tsim/members")?,
+            stage: channel::<msg::StageStart>(&mut writer, "/tsim/stage")?,
+        };
+        let case = BTreeMap::from([("case_id".to_string(), case_id.to_string()), ("tsim_version".to_string(), env!("CARGO_PKG_VERSION").to_string())]);
+        writer.write_metadata(&mcap::records::Metadata { name: "case".into(), metadata: case })?;
+        Ok(McapRecorder { writer: Some(writer), channels, stride: Stride::new(every)?, clock: Clock::default(), members: Vec::new(), stage: None, buf: Vec::new() })
+    }
+
+    fn log<T: Encode>(&mut self, channel: u16, log_time: u64, msg: &T) -> Result<(), Error> {
+        let writer = self.writer.as_mut().ok_or("MCAP recorder already finished")?;
+        self.buf.clear();
+        msg.encode(&mut self.buf).map_err(|e| e.to_string())?;
+        let header = mcap::records::MessageHeader { channel_id: channel, sequence: 0, log_time, publish_time: log_time };
+        Ok(writer.write_to_known_channel(&header, &self.buf)?)
+    }
+
+    fn log_stage(&mut self, stage: Stage, t: f64) -> Result<(), Error> {
+        let ns = self.clock.stage_stamp(t);
+        self.log(self.channels.stage, ns, &msg::StageStart { name: stage.name().into() })
+    }
+
+    /// Scene and member forces of one state, and its energy when there is one.
+    fn log_state(&mut self, stage: Stage, step: usize, ns: u64, positions: &[Vector3<f64>], forces: &[f64], energy: Option<Energy>) -> Result<(), Error> {
+        let scene = self.scene(ns, positions, forces);
+        self.log(self.channels.scene, ns, &scene)?;
+        let members = self.members.iter().zip(forces).map(|((id, _, _), &force)| msg::MemberForce { id: id.clone(), force }).collect();
+        let stage_name = stage.name().to_string();
+        self.log(self.channels.members, ns, &msg::MemberForces { stage: stage_name.clone(), step: step as u64, members })?;
+        if let Some(e) = energy {
+            let total = e.kinetic + e.strain + e.damping - e.external;
+            let energy = msg::Energy { stage: stage_name, step: step as u64, kinetic: e.kinetic, strain: e.strain, damping: e.damping, external: e.external, total };
+            self.log(self.channels.energy, ns, &energy)?;
+        }
+        Ok(())
+    }
+
+    /// One `LINE_LIST` per (kind, state) present, each of one colour: half the size of
+    /// per-vertex colours.
+    fn scene(&self, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) -> SceneUpdate {
+        let eps = SLACK_FRACTION * forces.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
+        let state = |kind: MemberKind, force: f64| {
+            if force.abs() <= eps || (kind == MemberKind::Cable && force < 0.0) {
+                GREY
+            } else if force < 0.0 {
+                BROWN
+            } else {
+                RED
+            }
+        };
+        let mut lines = Vec::new();
+        for (kind, thickness) in [(MemberKind::Strut, STRUT_WIDTH), (MemberKind::Cable, CABLE_WIDTH)] {
+            for color in [BROWN, RED, GREY] {
+                let points: Vec<Point3> = (self.members.iter().zip(forces))
+                    .filter(|((_, _, k), &f)| *k == kind && state(kind, f) == color)
+                    .flat_map(|((_, ends, _), _)| ends.map(|n| Point3 { x: positions[n].x, y: positions[n].y, z: positions[n].z }))
+                    .collect();
+                if !points.is_empty() {
+                    let r#type = line_primitive::Type::LineList as i32;
+                    lines.push(LinePrimitive { r#type, thickness, scale_invariant: true, points, color: Some(color), ..Default::default() });
+                }
+            }
+        }
+        let timestamp = Timestamp::new((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32);
+        let entity = SceneEntity { timestamp: Some(timestamp), frame_id: "world".into(), id: "tensegrity".into(), lines, ..Default::default() };
+        SceneUpdate { entities: vec![entity], ..Default::default() }
+    }
+
+    fn record_frame(&mut self, frame: &Frame) -> Result<(), Error> {
+        let stage = self.stage.ok_or("MCAP: frame outside a time-stepping stage")?;
+        let t = self.clock.frame_time(frame);
+        let ns = self.clock.step_stamp(t);
+        self.log_state(stage, frame.step, ns, frame.positions, frame.forces, Some(frame.energy))
+    }
+}
+
+/// Registers topic `topic` with `T`'s schema and encoding.
+fn channel<T: Encode>(writer: &mut mcap::Writer<BufWriter<File>>, topic: &str) -> Result<u16, Error> {
+    let schema = T::get_schema().ok_or("message type without a schema")?;
+    let schema_id = writer.add_schema(&schema.name, &schema.encoding, &schema.data)?;
+    Ok(writer.add_channel(schema_id, topic, &T::get_message_encoding(), &BTreeMap::new())?)
+}
+
+/// Places stages and steps on the log timeline (see the module documentation).
+#[derive(Default)]
+struct Clock {
+    /// Log time at which the next stage starts [s].
+    next: f64,
+    /// Start of the current stage [s].
+    origin: f64,
+    folding: bool,
+    /// Time within the stage of the latest frame, and the increment that led to it [s].
+    latest: Option<f64>,
+    step: f64,
+    last_step_ns: Option<u64>,
+    last_stage_ns: Option<u64>,
+}
+
+impl Clock {
+    fn begin(&mut self, folding: bool) {
+        self.origin = self.next;
+        self.folding = folding;
+        self.latest = None;
+        self.step = STATIC_STEP;
+    }
+
+    /// Log time of `frame` [s]; also tracks the stage's last step.
+    fn frame_time(&mut self, frame: &Frame) -> f64 {
+        let t = if self.folding { frame.step as f64 * STATIC_STEP } else { frame.time };
+        if let Some(prev) = self.latest.filter(|&p| t > p) {
+            self.step = t - prev;
+        }
+        self.latest = Some(t);
+        self.origin + t
+    }
+
+    fn end(&mut self) {
+        self.next = self.origin + self.latest.unwrap_or(0.0) + self.step;
+    }
+
+    /// Advances past a static stage of one step.
+    fn static_step(&mut self) -> f64 {
+        let t = self.next;
+        self.next += STATIC_STEP;
+        t
+    }
+
+    fn step_stamp(&mut self, t: f64) -> u64 {
+        let ns = nanos(t).max(self.last_step_ns.map_or(0, |l| l + 1));
+        self.last_step_ns = Some(ns);
+        ns
+    }
+
+    /// Never before the previous step: a stage message opens its stage.
+    fn stage_stamp(&mut self, t: f64) -> u64 {
+        let after = |last: Option<u64>| last.map_or(0, |l| l + 1);
+        let ns = nanos(t).max(after(self.last_stage_ns)).max(after(self.last_step_ns));
+        self.last_stage_ns = Some(ns);
+        ns
+    }
+}
+
+fn nanos(t: f64) -> u64 {
+    (t.max(0.0) * 1e9).round() as u64
+}
+
+impl Recorder for McapRecorder {
+    fn model(&mut self, record: &ModelRecord) -> RecordResult {
+        self.members = record.model.members.iter().map(|m| (m.id.clone(), m.nodes, m.kind)).collect();
+        Ok(())
+    }
+
+    fn formfinding(&mut self, record: &FormFindRecord) -> RecordResult {
+        let t = self.clock.static_step();
+        self.log_stage(Stage::FormFinding, t)?;
+        let ns = self.clock.step_stamp(t);
+        self.log_state(Stage::FormFinding, 0, ns, record.positions, record.forces, None)
+    }
+
+    fn eigen(&mut self, _record: &super::EigenRecord) -> RecordResult {
+        let t = self.clock.static_step();
+        self.log_stage(Stage::Eigen, t)
+    }
+
+    fn begin_stage(&mut self, stage: Stage) -> RecordResult {
+        self.clock.begin(stage == Stage::Folding);
+        self.stage = Some(stage);
+        self.log_stage(stage, self.clock.origin)
+    }
+
+    fn frame(&mut self, frame: &Frame) -> RecordResult {
+        if self.stride.keep(frame) {
+            self.record_frame(frame)?;
+        } else {
+            self.clock.frame_time(frame);
+        }
+        Ok(())
+    }
+
+    fn end_stage(&mut self, _stage: Stage) -> RecordResult {
+        if let Some(last) = self.stride.take_held() {
+            self.record_frame(&last.as_frame())?;
+        }
+        self.clock.end();
+        self.stage = None;
+        Ok(())
+    }
+
+    fn finish(&mut self, status: &str) -> RecordResult {
+        if let Some(stage) = self.stage {
+            self.end_stage(stage)?;
+        }
+        let mut writer = self.writer.take().ok_or("MCAP recorder already finished")?;
+        write_status(&mut writer, status)?;
+        writer.finish()?;
+        Ok(())
+    }
+}
+
+fn write_status(writer: &mut mcap::Writer<BufWriter<File>>, status: &str) -> Result<(), Error> {
+    let metadata = BTreeMap::from([("status".to_string(), status.to_string())]);
+    Ok(writer.write_metadata(&mcap::records::Metadata { name: "status".into(), metadata })?)
+}
+
+impl Drop for McapRecorder {
+    /// An unwinding panic still closes the file (mcap's writer finishes on drop), so say why
+    /// it ended early.
+    fn drop(&mut self) {
+        if let Some(writer) = &mut self.writer {
+            let _ = write_status(writer, "failed: recorder dropped before finish");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::generate::TowerSpec;
+    use crate::record::h5::tests::{drive, temp_path};
+
+    #[test]
+    fn logs_every_recorded_step_on_one_increasing_timeline() {
+        let model = TowerSpec { struts: 3, stages: 1, ..TowerSpec::paper() }.build();
+        let path = temp_path("replay.mcap");
+        let mut rec = McapRecorder::create(&path, "case-7", 3).unwrap();
+        drive(&mut rec, &model, 10).unwrap();
+        rec.finish("complete").unwrap();
+
+        let bytes = std::fs::read(&path).unwrap();
+        let mut times: BTreeMap<String, Vec<u64>> = BTreeMap::new();
+        let mut schemas = BTreeMap::new();
+        for message in mcap::MessageStream::new(&bytes).unwrap() {
+            let message = message.unwrap();
+            let topic = message.channel.topic.clone();
+            schemas.insert(topic.clone(), message.channel.schema.as_ref().unwrap().name.clone());
+            times.entry(topic).or_default().push(message.log_time);
+        }
+        assert_eq!(schemas["/tsim/scene"], "foxglove.SceneUpdate");
+        assert_eq!(schemas["/tsim/energy"], "energy.Energy");
+        // Steps 0, 3, 6, 9, 10 of three stages; form-finding adds a scene and members.
+        assert_eq!(times["/tsim/energy"].len(), 15);
+        assert_eq!(times["/tsim/scene"].len(), 16);
+        assert_eq!(times["/tsim/members"].len(), 16);
+        assert_eq!(times["/tsim/stage"].len(), 5);
+        for t in times.values() {
+            assert!(t.windows(2).all(|w| w[0] < w[1]), "{t:?}");
+        }
+        // Form-finding at 0, eigen at 0.1 s, free vibration from 0.2 s to 0.3 s (steps of
+        // 0.01 s), folding from 0.31 s in steps of 0.1 s to 1.31 s, deployment from 1.41 s.
+        let ms = |t: &u64| (*t as f64 / 1e6).round() as u64;
+        assert_eq!(times["/tsim/stage"].iter().map(ms).collect::<Vec<_>>(), [0, 100, 200, 310, 1410]);
+        assert_eq!(times["/tsim/energy"][..6].iter().map(ms).collect::<Vec<_>>(), [200, 230, 260, 290, 300, 310]);
+
+        let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+        assert!(summary.chunk_indexes.iter().all(|c| c.compression == "zstd"));
+    }
+
+    #[test]
+    fn colours_members_by_state() {
+        let model = TowerSpec { struts: 3, stages: 1, ..TowerSpec::paper() }.build();
+        let path = temp_path("colours.mcap");
+        let mut rec = McapRecorder::create(&path, "c", 1).unwrap();
+        rec.model(&ModelRecord { model: &model, rest_lengths: &[1.0; 12], masses: &[1.0; 6] }).unwrap();
+        // Struts, then side cables (the second below the slack threshold), then rings.
+        let forces = [-5.0, -5.0, 0.0, 2.0, 1e-9, -1.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0];
+        let scene = rec.scene(0, &model.positions(), &forces);
+        let summary: Vec<_> = scene.entities[0].lines.iter().map(|l| (l.thickness, l.color.unwrap(), l.points.len())).collect();
+        let (s, c) = (STRUT_WIDTH, CABLE_WIDTH);
+        assert_eq!(summary, [(s, BROWN, 4), (s, GREY, 2), (c, RED, 14), (c, GREY, 4)]);
+        rec.finish("complete").unwrap();
+    }
+}

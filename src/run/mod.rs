@@ -1,0 +1,137 @@
+//! The batch runner: a config file expands to cases (a sweep's cross product), cases run
+//! in parallel with rayon, each into its own directory, and a summary table collects them.
+//! The only place that knows about files, threads and progress display.
+
+mod progress;
+mod sweep;
+
+pub use progress::Progress;
+pub use sweep::{expand, Case};
+
+use crate::config::ConfigError;
+use crate::pipeline::{run_case, CaseSummary};
+use crate::record::{Recorder, Recorders};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Options of `tsim run`.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    pub out: PathBuf,
+    pub jobs: usize,
+    pub force: bool,
+    pub quiet: bool,
+}
+
+/// How one case ended.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CaseOutcome {
+    pub id: String,
+    pub params: Vec<(String, String)>,
+    /// "complete", "skipped (complete)", or "failed: <reason>".
+    pub status: String,
+    pub wall_seconds: f64,
+    pub summary: Option<CaseSummary>,
+}
+
+impl CaseOutcome {
+    pub fn failed(&self) -> bool {
+        self.status.starts_with("failed")
+    }
+}
+
+/// Default worker count: `SLURM_CPUS_PER_TASK` when set (a Slurm task sees every core of
+/// the node but owns only these), else the available cores.
+pub fn default_jobs() -> usize {
+    std::env::var("SLURM_CPUS_PER_TASK")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .filter(|&n: &usize| n > 0)
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
+/// Reads, expands and validates a config file: everything that can fail before work.
+pub fn load(path: &Path) -> Result<(String, Vec<Case>), ConfigError> {
+    let origin = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Io { file: origin.clone(), message: e.to_string() })?;
+    expand(&text, &origin)
+}
+
+/// Runs every case of a sweep into `out/<name>/<case id>/`, then writes `summary.csv`
+/// and `summary.json`. A failing case is recorded with its reason; the rest go on.
+pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec<CaseOutcome>> {
+    let dir = opts.out.join(name);
+    std::fs::create_dir_all(&dir)?;
+    let progress = Progress::new(cases.len(), opts.quiet);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(opts.jobs.max(1)).build().map_err(std::io::Error::other)?;
+    let outcomes: Vec<CaseOutcome> = pool.install(|| cases.par_iter().map(|case| run_one(case, &dir.join(&case.id), opts.force, &progress)).collect());
+    progress.finish();
+    sweep::write_summaries(&dir, &outcomes)?;
+    Ok(outcomes)
+}
+
+/// A case is complete on disk when its `outcome.json` (written last, after the outputs
+/// are closed) says so and its `case.yaml` is the same resolved config.
+fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
+    let yaml = std::fs::read_to_string(dir.join("case.yaml")).ok()?;
+    if yaml != case.yaml {
+        return None;
+    }
+    let outcome: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("outcome.json")).ok()?).ok()?;
+    (outcome["status"] == "complete").then(|| CaseOutcome {
+        id: case.id.clone(),
+        params: case.params.clone(),
+        status: "skipped (complete)".into(),
+        wall_seconds: outcome["wall_seconds"].as_f64().unwrap_or_default(),
+        summary: serde_json::from_value(outcome["summary"].clone()).ok(),
+    })
+}
+
+fn run_one(case: &Case, dir: &Path, force: bool, progress: &Progress) -> CaseOutcome {
+    if !force {
+        if let Some(done) = already_complete(case, dir) {
+            progress.done(&case.id, &done.status, 0.0);
+            return done;
+        }
+    }
+    let start = Instant::now();
+    let result = execute(case, dir, progress);
+    let wall_seconds = start.elapsed().as_secs_f64();
+    let (status, summary) = match result {
+        Ok(s) => ("complete".to_string(), Some(s)),
+        Err(reason) => (format!("failed: {reason}"), None),
+    };
+    progress.done(&case.id, &status, wall_seconds);
+    let outcome = CaseOutcome { id: case.id.clone(), params: case.params.clone(), status, wall_seconds, summary };
+    if let Ok(text) = serde_json::to_string_pretty(&outcome) {
+        // Written last: its presence with "complete" is what marks the case done.
+        let _ = std::fs::write(dir.join("outcome.json"), text);
+    }
+    outcome
+}
+
+/// Runs one case with its recorders; any error or panic becomes the failure reason.
+fn execute(case: &Case, dir: &Path, progress: &Progress) -> Result<CaseSummary, String> {
+    let _ = std::fs::remove_file(dir.join("outcome.json"));
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    std::fs::write(dir.join("case.yaml"), &case.yaml).map_err(|e| format!("cannot write case.yaml: {e}"))?;
+    let mut recorders: Vec<Box<dyn Recorder>> = vec![Box::new(progress.case_bar(&case.id))];
+    recorders.extend(crate::record::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml).map_err(|e| format!("cannot create outputs: {e}"))?);
+    let mut recorder = Recorders(recorders);
+    let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_case(&case.config, &mut recorder)));
+    let result = match run {
+        Ok(Ok(summary)) => Ok(summary),
+        Ok(Err(e)) => Err(e.to_string()),
+        Err(panic) => Err(format!(
+            "panic: {}",
+            panic.downcast_ref::<String>().cloned().or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string())).unwrap_or_default()
+        )),
+    };
+    let status = match &result {
+        Ok(_) => "complete".to_string(),
+        Err(reason) => format!("failed: {reason}"),
+    };
+    recorder.finish(&status).map_err(|e| format!("cannot finish outputs: {e}"))?;
+    result
+}

@@ -1,0 +1,135 @@
+//! The real binary on small sweeps: summaries, determinism across thread counts, resume,
+//! config errors, and a failing case among complete ones.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+fn tsim(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tsim")).args(args).env("CI", "1").output().expect("tsim runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("tsim-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+const SWEEP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/small_sweep.yaml");
+
+fn outcomes(dir: &Path) -> Vec<serde_json::Value> {
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("small/summary.json")).unwrap()).unwrap();
+    v.as_array().unwrap().clone()
+}
+
+#[test]
+fn sweep_runs_in_stable_order_and_resumes() {
+    let check = tsim(&["check", SWEEP]);
+    assert!(check.status.success());
+    let listed = String::from_utf8_lossy(&check.stdout);
+    let ids: Vec<&str> = listed.lines().skip(1).map(str::trim).collect();
+    // First axis slowest: the contract that names output directories.
+    assert_eq!(ids, ["cable-rubber_zeta-0.05", "cable-rubber_zeta-0.1", "cable-nylon_zeta-0.05", "cable-nylon_zeta-0.1"]);
+
+    let out = scratch("resume");
+    let run = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--jobs", "2"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let csv = std::fs::read_to_string(out.join("small/summary.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 4, "header + one row per case:\n{csv}");
+    assert!(csv.lines().next().unwrap().starts_with("case_id,cable,zeta,status,"));
+    for id in &ids {
+        assert!(out.join("small").join(id).join("case.yaml").exists());
+    }
+    assert!(outcomes(&out).iter().all(|o| o["status"] == "complete"));
+
+    let again = tsim(&["run", SWEEP, "--out", out.to_str().unwrap()]);
+    assert!(again.status.success());
+    assert!(outcomes(&out).iter().all(|o| o["status"] == "skipped (complete)"), "{:?}", outcomes(&out));
+    let forced = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--force"]);
+    assert!(forced.status.success());
+    assert!(outcomes(&out).iter().all(|o| o["status"] == "complete"));
+}
+
+/// Cases are independent and each runs sequentially inside, so the thread count must not
+/// change a single bit of any result.
+#[test]
+fn parallel_equals_serial() {
+    let strip = |dir: &Path| -> Vec<serde_json::Value> {
+        outcomes(dir)
+            .into_iter()
+            .map(|mut o| {
+                o.as_object_mut().unwrap().remove("wall_seconds");
+                o
+            })
+            .collect()
+    };
+    let (serial, parallel) = (scratch("serial"), scratch("parallel"));
+    assert!(tsim(&["run", SWEEP, "--out", serial.to_str().unwrap(), "--jobs", "1"]).status.success());
+    assert!(tsim(&["run", SWEEP, "--out", parallel.to_str().unwrap(), "--jobs", "2"]).status.success());
+    assert_eq!(strip(&serial), strip(&parallel));
+}
+
+fn bad_config(text: &str) -> (Output, PathBuf) {
+    let dir = scratch(&format!("bad{}", text.len()));
+    let path = dir.join("bad.yaml");
+    std::fs::write(&path, text).unwrap();
+    let start = Instant::now();
+    let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.join("runs").to_str().unwrap()]);
+    // Validation happens before any work: a second is generous for a parse.
+    assert!(start.elapsed() < Duration::from_secs(1));
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!dir.join("runs").exists(), "a bad config must write nothing");
+    (out, path)
+}
+
+#[test]
+fn bad_configs_fail_fast_with_location() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let (out, path) = bad_config(&good.replace("masses: paper", "masses: paper\nmassess: 3"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(path.to_str().unwrap()) && err.contains("massess") && err.contains("line 8"), "{err}");
+
+    let (out, _) = bad_config(&good.replace("duration: 0.1\n", "duration: 0.1\n  dt: -0.001\n"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("deployment.dt") && err.contains("> 0"), "{err}");
+
+    let (out, _) = bad_config(&good.replace("modes: [1, 6]", "modes: [1, 60]"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("eigen.rayleigh.modes[1]") && err.contains("1..=12"), "{err}");
+
+    let (out, _) = bad_config(&good.replace("[0.1, 0.1] } }", "[1.5, 0.1] } }"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("ratios[0]") && err.contains("zeta=0.1"), "{err}");
+
+    let (out, _) = bad_config(&good.replace("groups: [top], force: [0.0", "groups: [tip], force: [0.0"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("deployment.load.groups") && err.contains("tip"), "{err}");
+
+    let (out, _) = bad_config(&good.replace("name: small", "name: small\nmodel: [unclosed"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("line"));
+}
+
+/// One case cannot converge (one Newton iteration, no step cutting); the others complete
+/// and the run exits 1 with the reason in the summary.
+#[test]
+fn a_failing_case_does_not_stop_the_others() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good.replace(
+        "        - { label: \"0.1\", set: { eigen.rayleigh.ratios: [0.1, 0.1] } }",
+        "        - { label: \"0.1\", set: { eigen.rayleigh.ratios: [0.1, 0.1], newton.max_iterations: 1, deployment.max_cuts: 0, folding.max_cuts: 0 } }",
+    );
+    let dir = scratch("diverge");
+    let path = dir.join("sweep.yaml");
+    std::fs::write(&path, text).unwrap();
+    let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let o = outcomes(&dir);
+    let failed: Vec<_> = o.iter().filter(|c| c["status"].as_str().unwrap().starts_with("failed")).collect();
+    assert_eq!(failed.len(), 2, "{o:?}");
+    for f in failed {
+        let s = f["status"].as_str().unwrap();
+        assert!(s.contains("did not converge"), "{s}");
+    }
+    assert_eq!(o.iter().filter(|c| c["status"] == "complete").count(), 2);
+}
