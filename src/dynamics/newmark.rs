@@ -23,7 +23,13 @@ pub struct NewmarkParams {
 
 impl Default for NewmarkParams {
     fn default() -> Self {
-        NewmarkParams { beta: 0.25, gamma: 0.5, dt: 0.001, duration: 8.0, max_cuts: 6 }
+        NewmarkParams {
+            beta: 0.25,
+            gamma: 0.5,
+            dt: 0.001,
+            duration: 8.0,
+            max_cuts: 6,
+        }
     }
 }
 
@@ -72,7 +78,15 @@ pub struct Newmark<'a> {
 impl<'a> Newmark<'a> {
     /// Starts at rest-or-moving state (`asm`'s positions, velocities `v`) under external
     /// force `f0`, with the consistent initial acceleration a0 = M⁻¹(f0 − C v0 − p(x0)).
-    pub fn new(asm: Assembly<'a>, mass: Vec<f64>, v: Vec<f64>, f0: Vec<f64>, params: NewmarkParams, rayleigh: Rayleigh, tangent: DampingTangent) -> Self {
+    pub fn new(
+        asm: Assembly<'a>,
+        mass: Vec<f64>,
+        v: Vec<f64>,
+        f0: Vec<f64>,
+        params: NewmarkParams,
+        rayleigh: Rayleigh,
+        tangent: DampingTangent,
+    ) -> Self {
         let n = mass.len();
         let u = asm.free_coordinates();
         let mut k_damp = Mat::zeros(n, n);
@@ -105,13 +119,22 @@ impl<'a> Newmark<'a> {
     fn damping_force(&self, k: &Mat<f64>, v: &[f64]) -> Vec<f64> {
         let n = v.len();
         (0..n)
-            .map(|i| self.rayleigh.alpha * self.mass[i] * v[i] + self.rayleigh.beta * (0..n).map(|j| k[(i, j)] * v[j]).sum::<f64>())
+            .map(|i| {
+                self.rayleigh.alpha * self.mass[i] * v[i]
+                    + self.rayleigh.beta * (0..n).map(|j| k[(i, j)] * v[j]).sum::<f64>()
+            })
             .collect()
     }
 
     fn ledger_now(&self, damping: f64, external: f64) -> Energy {
         Energy {
-            kinetic: 0.5 * self.mass.iter().zip(&self.v).map(|(m, v)| m * v * v).sum::<f64>(),
+            kinetic: 0.5
+                * self
+                    .mass
+                    .iter()
+                    .zip(&self.v)
+                    .map(|(m, v)| m * v * v)
+                    .sum::<f64>(),
             strain: self.asm.elements.strain_energy(self.asm.model, &self.asm.x),
             damping,
             external,
@@ -126,35 +149,64 @@ impl<'a> Newmark<'a> {
 
     /// Advances by `dt`, cutting the step in halves (recursively, `max_cuts` deep) where
     /// Newton fails. `load(t, f)` writes the external force on the free DOFs at time t.
-    pub fn advance(&mut self, dt: f64, newton_settings: &NewtonSettings, load: &dyn Fn(f64, &mut [f64]), label: &dyn Fn(usize) -> String) -> Result<NewtonReport, SolveError> {
+    pub fn advance(
+        &mut self,
+        dt: f64,
+        newton_settings: &NewtonSettings,
+        load: &dyn Fn(f64, &mut [f64]),
+        label: &dyn Fn(usize) -> String,
+    ) -> Result<NewtonReport, SolveError> {
         self.advance_cut(dt, 0, newton_settings, load, label)
     }
 
-    fn advance_cut(&mut self, dt: f64, depth: u32, settings: &NewtonSettings, load: &dyn Fn(f64, &mut [f64]), label: &dyn Fn(usize) -> String) -> Result<NewtonReport, SolveError> {
+    fn advance_cut(
+        &mut self,
+        dt: f64,
+        depth: u32,
+        settings: &NewtonSettings,
+        load: &dyn Fn(f64, &mut [f64]),
+        label: &dyn Fn(usize) -> String,
+    ) -> Result<NewtonReport, SolveError> {
         match self.step(dt, settings, load, label) {
             Ok(r) => Ok(r),
             Err(e) if depth >= self.params.max_cuts => Err(e),
             Err(_) => {
                 let first = self.advance_cut(dt / 2.0, depth + 1, settings, load, label)?;
                 let second = self.advance_cut(dt / 2.0, depth + 1, settings, load, label)?;
-                Ok(NewtonReport { iterations: first.iterations + second.iterations, residuals: second.residuals })
+                Ok(NewtonReport {
+                    iterations: first.iterations + second.iterations,
+                    residuals: second.residuals,
+                })
             }
         }
     }
 
     /// One Newmark step of size dt; on failure the state is left as it was.
-    fn step(&mut self, dt: f64, settings: &NewtonSettings, load: &dyn Fn(f64, &mut [f64]), label: &dyn Fn(usize) -> String) -> Result<NewtonReport, SolveError> {
+    fn step(
+        &mut self,
+        dt: f64,
+        settings: &NewtonSettings,
+        load: &dyn Fn(f64, &mut [f64]),
+        label: &dyn Fn(usize) -> String,
+    ) -> Result<NewtonReport, SolveError> {
         let n = self.mass.len();
         let t_next = self.time + dt;
         let mut f_next = vec![0.0; n];
         load(t_next, &mut f_next);
         let (beta, gamma) = (self.params.beta, self.params.gamma);
         // Predictor: u_{n+1} = u_n + dt v_n + dt² (½ − β) a_n + β dt² a_{n+1}.
-        let base: Vec<f64> = (0..n).map(|i| self.u[i] + dt * self.v[i] + dt * dt * (0.5 - beta) * self.a[i]).collect();
+        let base: Vec<f64> = (0..n)
+            .map(|i| self.u[i] + dt * self.v[i] + dt * dt * (0.5 - beta) * self.a[i])
+            .collect();
         let mut u = self.u.clone();
         let length = self.asm.model.size();
         let report = {
-            let mut problem = StepProblem { nm: self, dt, base: &base, f: &f_next };
+            let mut problem = StepProblem {
+                nm: self,
+                dt,
+                base: &base,
+                f: &f_next,
+            };
             let result = newton(&mut problem, &mut u, settings, length, label);
             if result.is_err() {
                 let u_old = self.u.clone();
@@ -165,8 +217,12 @@ impl<'a> Newmark<'a> {
         };
         // Commit: accelerations, velocities, damping force, energy ledger.
         self.asm.set_free(&u);
-        let a_next: Vec<f64> = (0..n).map(|i| (u[i] - base[i]) / (beta * dt * dt)).collect();
-        let v_next: Vec<f64> = (0..n).map(|i| self.v[i] + dt * ((1.0 - gamma) * self.a[i] + gamma * a_next[i])).collect();
+        let a_next: Vec<f64> = (0..n)
+            .map(|i| (u[i] - base[i]) / (beta * dt * dt))
+            .collect();
+        let v_next: Vec<f64> = (0..n)
+            .map(|i| self.v[i] + dt * ((1.0 - gamma) * self.a[i] + gamma * a_next[i]))
+            .collect();
         let fd_next = match self.tangent {
             DampingTangent::Current => {
                 let mut k = Mat::zeros(n, n);
@@ -217,7 +273,9 @@ impl Residual for StepProblem<'_, '_> {
         let n = u.len();
         let c_a = 1.0 / (beta * dt * dt);
         let c_v = gamma / (beta * dt);
-        let v: Vec<f64> = (0..n).map(|i| nm.v[i] + dt * ((1.0 - gamma) * nm.a[i] + gamma * c_a * (u[i] - self.base[i]))).collect();
+        let v: Vec<f64> = (0..n)
+            .map(|i| nm.v[i] + dt * ((1.0 - gamma) * nm.a[i] + gamma * c_a * (u[i] - self.base[i])))
+            .collect();
         let (alpha_r, beta_r) = (nm.rayleigh.alpha, nm.rayleigh.beta);
         // Jacobian: K_T + β_R c_v K_damp, then M (c_a + α_R c_v) on the diagonal below.
         nm.asm.add_tangent(1.0, k);
@@ -239,14 +297,22 @@ impl Residual for StepProblem<'_, '_> {
             }
             _ => nm.damping_force(&nm.k_damp, &v),
         };
-        let mut applied = 0.0_f64;
+        let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);
         for i in 0..n {
             let m = nm.mass[i];
             k[(i, i)] += m * (c_a + alpha_r * c_v);
             let inertia = m * c_a * (u[i] - self.base[i]);
             r[i] = self.f[i] - inertia - fd[i] - nm.asm.p_free(i);
             applied = applied.max(self.f[i].abs()).max(inertia.abs());
+            inertia_floor = inertia_floor.max(m * c_a * u[i].abs());
         }
-        nm.asm.scale(applied)
+        // The inertia term differences absolute coordinates: its round-off is
+        // m/(βΔt²)·ε·|u|, which for small steps or far-from-origin nodes exceeds the
+        // members' floor. 64 ε as for the members.
+        let scale = nm.asm.scale(applied);
+        Scale {
+            roundoff: scale.roundoff + 64.0 * f64::EPSILON * inertia_floor,
+            ..scale
+        }
     }
 }
