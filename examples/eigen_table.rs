@@ -10,9 +10,7 @@ use tsim::pipeline::run_case;
 use tsim::record::NoRecorder;
 
 fn main() {
-    let path = std::env::args()
-        .nth(1)
-        .unwrap_or_else(|| "configs/paper.yaml".into());
+    let path = std::env::args().nth(1).unwrap_or_else(|| "configs/paper.yaml".into());
     let text = std::fs::read_to_string(&path).unwrap();
     let cfg = parse_case(&text, &path).unwrap_or_else(|e| panic!("{e}"));
 
@@ -28,13 +26,13 @@ fn main() {
         };
         let s = run_case(&eigen_only, &mut NoRecorder).unwrap_or_else(|e| panic!("{e}"));
         let e = s.eigen.expect("paper.yaml has an eigen section");
-        println!(
-            "== masses: {reading:?} (total {:.6} kg)",
-            s.substitution.total_mass
-        );
+        println!("== masses: {reading:?} (total {:.6} kg)", s.substitution.total_mass);
         let (w3, w20) = (e.omega2[2], e.omega2[19]);
         let r = Rayleigh::from_modes(w3.sqrt(), w20.sqrt(), 0.2, 0.2);
-        println!("mode 3: ω² = {w3:.6e}, mode 20: ω² = {w20:.6e} → ζ = 0.2: α = {:.6e} 1/s, β = {:.6e} s", r.alpha, r.beta);
+        println!(
+            "mode 3: ω² = {w3:.6e}, mode 20: ω² = {w20:.6e} → ζ = 0.2: α = {:.6e} 1/s, β = {:.6e} s",
+            r.alpha, r.beta
+        );
         let cables = e.omega2.len() - 10;
         println!(
             "highest cable mode ω² = {:.6e}, lowest strut mode ω² = {:.6e}, ratio {:.3e}",

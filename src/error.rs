@@ -9,7 +9,12 @@ pub enum Error {
     #[error("model: {0}")]
     Model(#[from] ModelError),
     #[error("{stage}{}: {source}", step_text(*.step, *.time))]
-    Solve { stage: &'static str, step: Option<usize>, time: Option<f64>, source: SolveError },
+    Solve {
+        stage: &'static str,
+        step: Option<usize>,
+        time: Option<f64>,
+        source: SolveError,
+    },
     #[error("substitution: member `{member}`: {reason}")]
     Substitution { member: String, reason: String },
     #[error("{stage}: {reason}")]

@@ -7,7 +7,12 @@ use std::process::ExitCode;
 use tsim::run::{default_jobs, load, run, RunOptions};
 
 #[derive(Parser)]
-#[command(name = "tsim", version, about = "Tensegrity simulation by the tangent stiffness method: form-finding, real materials, vibration, folding, deployment", after_help = "Examples:\n  tsim check configs/sweep.yaml\n  tsim run configs/paper.yaml\n  tsim run configs/sweep.yaml --jobs 2 --out runs\n  tsim run configs/sweep.yaml --force   # rerun complete cases too")]
+#[command(
+    name = "tsim",
+    version,
+    about = "Tensegrity simulation by the tangent stiffness method: form-finding, real materials, vibration, folding, deployment",
+    after_help = "Examples:\n  tsim check configs/sweep.yaml\n  tsim run configs/paper.yaml\n  tsim run configs/sweep.yaml --jobs 2 --out runs\n  tsim run configs/sweep.yaml --force   # rerun complete cases too"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -33,9 +38,7 @@ enum Command {
         quiet: bool,
     },
     /// Validate a config and list the cases it would run.
-    Check {
-        config: PathBuf,
-    },
+    Check { config: PathBuf },
 }
 
 fn main() -> ExitCode {
@@ -54,7 +57,13 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
-        Command::Run { config, out, jobs, force, quiet } => {
+        Command::Run {
+            config,
+            out,
+            jobs,
+            force,
+            quiet,
+        } => {
             let (name, cases) = match load(&config) {
                 Ok(x) => x,
                 Err(e) => {
@@ -62,11 +71,21 @@ fn main() -> ExitCode {
                     return ExitCode::from(2);
                 }
             };
-            let opts = RunOptions { out, jobs: jobs.unwrap_or_else(default_jobs), force, quiet };
+            let opts = RunOptions {
+                out,
+                jobs: jobs.unwrap_or_else(default_jobs),
+                force,
+                quiet,
+            };
             match run(&name, &cases, &opts) {
                 Ok(outcomes) => {
                     let failed = outcomes.iter().filter(|o| o.failed()).count();
-                    eprintln!("{} case(s): {} failed; results in {}", outcomes.len(), failed, opts.out.join(&name).display());
+                    eprintln!(
+                        "{} case(s): {} failed; results in {}",
+                        outcomes.len(),
+                        failed,
+                        opts.out.join(&name).display()
+                    );
                     if failed > 0 {
                         ExitCode::from(1)
                     } else {

@@ -75,7 +75,10 @@ pub struct DeploymentSummary {
 }
 
 fn rec_err(stage: &'static str) -> impl Fn(Box<dyn std::error::Error + Send + Sync>) -> Error {
-    move |e| Error::Stage { stage, reason: format!("recording failed: {e}") }
+    move |e| Error::Stage {
+        stage,
+        reason: format!("recording failed: {e}"),
+    }
 }
 
 /// Lumped masses: each member's density × area × rest length, half to each end.
@@ -96,15 +99,28 @@ fn nodal_load(model: &Model, spec: &LoadSpec) -> Result<NodalLoad> {
     }
     nodes.sort_unstable();
     nodes.dedup();
-    Ok(NodalLoad { nodes, force: Vector3::from(spec.force), duration: spec.duration, profile: spec.profile })
+    Ok(NodalLoad {
+        nodes,
+        force: Vector3::from(spec.force),
+        duration: spec.duration,
+        profile: spec.profile,
+    })
 }
 
 fn params(t: &TransientSpec) -> NewmarkParams {
-    NewmarkParams { beta: t.newmark_beta, gamma: t.newmark_gamma, dt: t.dt, duration: t.duration, max_cuts: t.max_cuts }
+    NewmarkParams {
+        beta: t.newmark_beta,
+        gamma: t.newmark_gamma,
+        dt: t.dt,
+        duration: t.duration,
+        max_cuts: t.max_cuts,
+    }
 }
 
 fn height(x: &[Vector3<f64>]) -> f64 {
-    let (lo, hi) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
     hi - lo
 }
 
@@ -114,12 +130,26 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     let mut summary = CaseSummary::default();
     let lib = cfg.material_library();
     let material = |kind: MemberKind| {
-        let name = if kind == MemberKind::Strut { &cfg.substitution.strut } else { &cfg.substitution.cable };
+        let name = if kind == MemberKind::Strut {
+            &cfg.substitution.strut
+        } else {
+            &cfg.substitution.cable
+        };
         lib[name].clone()
     };
     let (strut_mat, cable_mat) = (material(MemberKind::Strut), material(MemberKind::Cable));
     let (strut_law, cable_law) = (strut_mat.law(), cable_mat.law());
-    let real_laws: Vec<Arc<dyn ForceLaw>> = model.members.iter().map(|m| if m.kind == MemberKind::Strut { strut_law.clone() } else { cable_law.clone() }).collect();
+    let real_laws: Vec<Arc<dyn ForceLaw>> = model
+        .members
+        .iter()
+        .map(|m| {
+            if m.kind == MemberKind::Strut {
+                strut_law.clone()
+            } else {
+                cable_law.clone()
+            }
+        })
+        .collect();
 
     // Form-finding, then substitution; or the given rest lengths directly. Its record
     // waits for the model record, which needs the real rest lengths and masses.
@@ -155,7 +185,12 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
 
     let dofs = DofMap::new(&model, &[]);
     let asm = Assembly::new(&model, &elements, &dofs, positions.clone());
-    let stretch = model.members.iter().enumerate().filter(|(_, m)| m.kind == MemberKind::Cable).map(|(k, _)| asm.states[k].length / elements.rest[k]);
+    let stretch = model
+        .members
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.kind == MemberKind::Cable)
+        .map(|(k, _)| asm.states[k].length / elements.rest[k]);
     summary.substitution.cable_stretch = stretch.fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], l| [lo.min(l), hi.max(l)]);
     let k = tangent_matrix(&asm);
     let (lowest, at) = lowest_stiffness(&k, &dofs, &model)?;
@@ -173,9 +208,21 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
         .collect();
     let node_mass = lumped_masses(&model, &elements.rest, &linear_density);
     summary.substitution.total_mass = node_mass.iter().sum();
-    recorder.model(&ModelRecord { model: &model, rest_lengths: &elements.rest, masses: &node_mass }).map_err(rec_err("model"))?;
+    recorder
+        .model(&ModelRecord {
+            model: &model,
+            rest_lengths: &elements.rest,
+            masses: &node_mass,
+        })
+        .map_err(rec_err("model"))?;
     if let Some((residuals, forces)) = &formfound {
-        recorder.formfinding(&FormFindRecord { residuals, positions: &positions, forces }).map_err(rec_err("form-finding"))?;
+        recorder
+            .formfinding(&FormFindRecord {
+                residuals,
+                positions: &positions,
+                forces,
+            })
+            .map_err(rec_err("form-finding"))?;
     }
 
     let mut rayleigh = Rayleigh::default();
@@ -202,7 +249,14 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
         };
         let shapes = m.node_shapes(&model, &dofs);
         recorder
-            .eigen(&EigenRecord { omega2: &m.omega2, mode_shapes: &shapes, rayleigh_alpha: rayleigh.alpha, rayleigh_beta: rayleigh.beta, damping_modes: &chosen, damping_ratio: &ratios })
+            .eigen(&EigenRecord {
+                omega2: &m.omega2,
+                mode_shapes: &shapes,
+                rayleigh_alpha: rayleigh.alpha,
+                rayleigh_beta: rayleigh.beta,
+                damping_modes: &chosen,
+                damping_ratio: &ratios,
+            })
             .map_err(rec_err("eigen"))?;
         summary.eigen = Some(EigenSummary {
             frequency_hz: m.frequency_hz(),
@@ -235,7 +289,12 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     let mut start = positions.clone();
     if let Some(spec) = &cfg.folding {
         let prescribed = prescribed_dofs(&model, &positions, spec)?;
-        let folded = Folding { steps: spec.steps, max_cuts: spec.max_cuts, newton: cfg.newton }.run(&model, &elements, positions.clone(), &prescribed, recorder)?;
+        let folded = Folding {
+            steps: spec.steps,
+            max_cuts: spec.max_cuts,
+            newton: cfg.newton,
+        }
+        .run(&model, &elements, positions.clone(), &prescribed, recorder)?;
         start = folded.final_positions.clone();
         summary.folding = Some(folded);
     }
@@ -244,7 +303,14 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
         let t = transient(spec, Stage::Deployment, start, recorder)?;
         let h = height(&positions);
         let rms = |target: &dyn Fn(&Vector3<f64>) -> Vector3<f64>| {
-            (t.final_positions.iter().zip(&positions).map(|(x, p)| (x - target(p)).norm_squared()).sum::<f64>() / positions.len() as f64).sqrt() / h
+            (t.final_positions
+                .iter()
+                .zip(&positions)
+                .map(|(x, p)| (x - target(p)).norm_squared())
+                .sum::<f64>()
+                / positions.len() as f64)
+                .sqrt()
+                / h
         };
         let base_z = positions.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
         summary.deployment = Some(DeploymentSummary {
@@ -286,7 +352,10 @@ fn auto_modes(m: &crate::stage::eigen::Modes, mass: &[f64], dofs: &DofMap, axis:
     let n = mass.len();
     let mut eff: Vec<(usize, f64)> = (0..n)
         .map(|k| {
-            let g: f64 = (0..n).filter(|&i| dofs.owner(i).1 == axis.index()).map(|i| m.shapes[(i, k)] * mass[i]).sum();
+            let g: f64 = (0..n)
+                .filter(|&i| dofs.owner(i).1 == axis.index())
+                .map(|i| m.shapes[(i, k)] * mass[i])
+                .sum();
             (k + 1, g * g)
         })
         .collect();

@@ -6,7 +6,11 @@ use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
 fn tsim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tsim")).args(args).env("CI", "1").output().expect("tsim runs")
+    Command::new(env!("CARGO_BIN_EXE_tsim"))
+        .args(args)
+        .env("CI", "1")
+        .output()
+        .expect("tsim runs")
 }
 
 fn scratch(name: &str) -> PathBuf {
@@ -30,7 +34,15 @@ fn sweep_runs_in_stable_order_and_resumes() {
     let listed = String::from_utf8_lossy(&check.stdout);
     let ids: Vec<&str> = listed.lines().skip(1).map(str::trim).collect();
     // First axis slowest: the contract that names output directories.
-    assert_eq!(ids, ["cable-rubber_zeta-0.05", "cable-rubber_zeta-0.1", "cable-nylon_zeta-0.05", "cable-nylon_zeta-0.1"]);
+    assert_eq!(
+        ids,
+        [
+            "cable-rubber_zeta-0.05",
+            "cable-rubber_zeta-0.1",
+            "cable-nylon_zeta-0.05",
+            "cable-nylon_zeta-0.1"
+        ]
+    );
 
     let out = scratch("resume");
     let run = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--jobs", "2"]);
@@ -45,7 +57,11 @@ fn sweep_runs_in_stable_order_and_resumes() {
 
     let again = tsim(&["run", SWEEP, "--out", out.to_str().unwrap()]);
     assert!(again.status.success());
-    assert!(outcomes(&out).iter().all(|o| o["status"] == "skipped (complete)"), "{:?}", outcomes(&out));
+    assert!(
+        outcomes(&out).iter().all(|o| o["status"] == "skipped (complete)"),
+        "{:?}",
+        outcomes(&out)
+    );
     let forced = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--force"]);
     assert!(forced.status.success());
     assert!(outcomes(&out).iter().all(|o| o["status"] == "complete"));
@@ -65,8 +81,12 @@ fn parallel_equals_serial() {
             .collect()
     };
     let (serial, parallel) = (scratch("serial"), scratch("parallel"));
-    assert!(tsim(&["run", SWEEP, "--out", serial.to_str().unwrap(), "--jobs", "1"]).status.success());
-    assert!(tsim(&["run", SWEEP, "--out", parallel.to_str().unwrap(), "--jobs", "2"]).status.success());
+    assert!(tsim(&["run", SWEEP, "--out", serial.to_str().unwrap(), "--jobs", "1"])
+        .status
+        .success());
+    assert!(tsim(&["run", SWEEP, "--out", parallel.to_str().unwrap(), "--jobs", "2"])
+        .status
+        .success());
     assert_eq!(strip(&serial), strip(&parallel));
 }
 
@@ -88,7 +108,10 @@ fn bad_configs_fail_fast_with_location() {
     let good = std::fs::read_to_string(SWEEP).unwrap();
     let (out, path) = bad_config(&good.replace("masses: paper", "masses: paper\nmassess: 3"));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains(path.to_str().unwrap()) && err.contains("massess") && err.contains("line 8"), "{err}");
+    assert!(
+        err.contains(path.to_str().unwrap()) && err.contains("massess") && err.contains("line 8"),
+        "{err}"
+    );
 
     let (out, _) = bad_config(&good.replace("duration: 0.1\n", "duration: 0.1\n  dt: -0.001\n"));
     let err = String::from_utf8_lossy(&out.stderr);

@@ -32,9 +32,22 @@ fn perturb(model: &mut Model, amplitude: f64) {
 }
 
 fn real_laws(model: &Model) -> Vec<Arc<dyn ForceLaw>> {
-    let strut: Arc<dyn ForceLaw> = Arc::new(LinearElastic { ea: 68e9 * 0.01, tension_only: false });
+    let strut: Arc<dyn ForceLaw> = Arc::new(LinearElastic {
+        ea: 68e9 * 0.01,
+        tension_only: false,
+    });
     let cable: Arc<dyn ForceLaw> = Arc::new(OgdenCord::new(OgdenCord::paper_terms(), 50e-6, 1.0, 0.1));
-    model.members.iter().map(|m| if m.kind == MemberKind::Strut { strut.clone() } else { cable.clone() }).collect()
+    model
+        .members
+        .iter()
+        .map(|m| {
+            if m.kind == MemberKind::Strut {
+                strut.clone()
+            } else {
+                cable.clone()
+            }
+        })
+        .collect()
 }
 
 /// Regular prisms (notes.md, Tibert & Pellegrino 2003): started 0.15 rad off the
@@ -49,7 +62,11 @@ fn regular_prisms_reach_closed_form() {
     for n in [3, 4, 5, 6] {
         let s = (PI / n as f64).sin();
         let h2_r2 = 8.0 * s.powi(3) / 0.5 - 2.0 * (1.0 - s);
-        let mut spec = TowerSpec { struts: n, stages: 1, ..TowerSpec::paper() };
+        let mut spec = TowerSpec {
+            struts: n,
+            stages: 1,
+            ..TowerSpec::paper()
+        };
         spec.radius = 7.0 / (2.0 + 2.0 * s + h2_r2).sqrt();
         let mut model = spec.build();
         // Twist the top ring away from equilibrium, then add noise.
@@ -58,8 +75,16 @@ fn regular_prisms_reach_closed_form() {
             node.xyz = Vector3::new(r * a.cos(), r * a.sin(), node.xyz.z);
         }
         perturb(&mut model, 0.05);
-        let c = BTreeMap::from([("ring_base".to_string(), 1.0), ("ring_top".to_string(), 1.0), ("side0".to_string(), 0.5)]);
-        let measure = MeasureSpec { strut_rest_length: Some(7.0), cable_c: CableCoefficients::PerGroup(c), ..Default::default() };
+        let c = BTreeMap::from([
+            ("ring_base".to_string(), 1.0),
+            ("ring_top".to_string(), 1.0),
+            ("side0".to_string(), 0.5),
+        ]);
+        let measure = MeasureSpec {
+            strut_rest_length: Some(7.0),
+            cable_c: CableCoefficients::PerGroup(c),
+            ..Default::default()
+        };
         let elements = measure.elements(&model).unwrap();
         let eq = form_find(&model, &elements, &NewtonSettings::default()).unwrap();
         let x = &eq.positions;
@@ -71,12 +96,22 @@ fn regular_prisms_reach_closed_form() {
             assert!(err.abs() < 1e-6, "n={n} strut {i}: span {span} vs closed form {theta}");
         }
         let q = |prefix: &str| -> Vec<f64> {
-            model.members.iter().enumerate().filter(|(_, m)| m.id.starts_with(prefix)).map(|(k, _)| eq.forces[k] / eq.lengths[k]).collect()
+            model
+                .members
+                .iter()
+                .enumerate()
+                .filter(|(_, m)| m.id.starts_with(prefix))
+                .map(|(k, _)| eq.forces[k] / eq.lengths[k])
+                .collect()
         };
         let q_ring = q("ring_base")[0];
         for (group, expected) in [("ring", 1.0), ("side", 2.0 * s), ("strut", -2.0 * s)] {
             for v in q(group) {
-                assert!((v / q_ring - expected).abs() < 1e-6 * expected.abs(), "n={n} {group}: q ratio {} vs {expected}", v / q_ring);
+                assert!(
+                    (v / q_ring - expected).abs() < 1e-6 * expected.abs(),
+                    "n={n} {group}: q ratio {} vs {expected}",
+                    v / q_ring
+                );
             }
         }
     }
@@ -120,7 +155,10 @@ fn tangent_matches_finite_differences() {
             fd[i][j] = (plus[i] - probe.p_free(i)) / (2.0 * h);
         }
     }
-    let max_k = (0..n).flat_map(|i| (0..n).map(move |j| (i, j))).map(|(i, j)| k[(i, j)].abs()).fold(0.0, f64::max);
+    let max_k = (0..n)
+        .flat_map(|i| (0..n).map(move |j| (i, j)))
+        .map(|(i, j)| k[(i, j)].abs())
+        .fold(0.0, f64::max);
     let mut worst = 0.0_f64;
     for i in 0..n {
         for j in 0..n {
@@ -140,9 +178,17 @@ fn substitution_round_trip() {
     let eq = form_find(&model, &elements, &NewtonSettings::default()).unwrap();
     let balanced = balanced_forces(&model, &eq.positions, &eq.forces);
     let sub = substitute(&model, &eq.positions, &balanced, real_laws(&model), 1.0).unwrap();
-    assert!(sub.residual <= 1e-8 * sub.max_force, "real-material residual {:e} vs max force {}", sub.residual, sub.max_force);
+    assert!(
+        sub.residual <= 1e-8 * sub.max_force,
+        "real-material residual {:e} vs max force {}",
+        sub.residual,
+        sub.max_force
+    );
     // Linear elastic closed form: l0 = l·EA/(EA + N).
-    let law = LinearElastic { ea: 1e6, tension_only: true };
+    let law = LinearElastic {
+        ea: 1e6,
+        tension_only: true,
+    };
     for (l, n) in [(2.0, 150.0), (3.5, 1.0), (1.0, 0.0)] {
         let l0 = rest_length(&law, l, n).unwrap();
         let exact = l * 1e6 / (1e6 + n);
@@ -180,7 +226,12 @@ fn paper_tower_form_finds_and_is_stable() {
 }
 
 fn small_model() -> Model {
-    TowerSpec { struts: 3, stages: 1, ..TowerSpec::paper() }.build()
+    TowerSpec {
+        struts: 3,
+        stages: 1,
+        ..TowerSpec::paper()
+    }
+    .build()
 }
 
 #[test]
@@ -192,10 +243,16 @@ fn bad_models_are_rejected_by_name() {
     let mut m = small_model();
     let dup = m.members[3].clone();
     m.members.push(tsim::model::Member { id: "extra".into(), ..dup });
-    assert!(matches!(m.validate(), Err(ModelError::DuplicateMember { ref member, ref other, .. }) if member == "extra" && other == "side0_0"));
+    assert!(
+        matches!(m.validate(), Err(ModelError::DuplicateMember { ref member, ref other, .. }) if member == "extra" && other == "side0_0")
+    );
 
     let mut m = small_model();
-    m.nodes.push(tsim::model::Node { id: "lonely".into(), xyz: Vector3::new(9.0, 9.0, 9.0), support: [false; 3] });
+    m.nodes.push(tsim::model::Node {
+        id: "lonely".into(),
+        xyz: Vector3::new(9.0, 9.0, 9.0),
+        support: [false; 3],
+    });
     assert_eq!(m.validate(), Err(ModelError::UnusedNode { node: "lonely".into() }));
 
     let mut m = small_model();
@@ -205,7 +262,10 @@ fn bad_models_are_rejected_by_name() {
     let mut m = small_model();
     m.nodes[1].support = [false, false, true];
     let err = m.validate().unwrap_err();
-    assert!(matches!(err, ModelError::RigidBodyFree { ref motion } if motion.contains("rotation about z")), "{err}");
+    assert!(
+        matches!(err, ModelError::RigidBodyFree { ref motion } if motion.contains("rotation about z")),
+        "{err}"
+    );
 
     let mut m = small_model();
     m.nodes[0].support = [false, false, true];

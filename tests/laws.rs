@@ -12,12 +12,26 @@ fn check_derivatives(law: &dyn ForceLaw, l0: f64, lengths: &[f64]) {
         let de = (law.energy(l + h, l0) - law.energy(l - h, l0)) / (2.0 * h);
         let dn = (law.eval(l + h, l0).force - law.eval(l - h, l0).force) / (2.0 * h);
         let scale_f = e.force.abs().max(1e-12 * law.eval(2.0 * l0.max(1.0), l0).force.abs()).max(1e-300);
-        assert!((de - e.force).abs() <= 1e-7 * scale_f, "{}: dE/dl {de} vs N {} at l={l}", law.name(), e.force);
+        assert!(
+            (de - e.force).abs() <= 1e-7 * scale_f,
+            "{}: dE/dl {de} vs N {} at l={l}",
+            law.name(),
+            e.force
+        );
         let scale_k = e.stiffness.abs().max(1e-300);
-        assert!((dn - e.stiffness).abs() <= 1e-6 * scale_k, "{}: dN/dl {dn} vs k {} at l={l}", law.name(), e.stiffness);
+        assert!(
+            (dn - e.stiffness).abs() <= 1e-6 * scale_k,
+            "{}: dN/dl {dn} vs k {} at l={l}",
+            law.name(),
+            e.stiffness
+        );
         let dr = (law.eval(l, l0 + h).force - law.eval(l, l0 - h).force) / (2.0 * h);
         let r = law.d_force_d_rest(l, l0);
-        assert!((dr - r).abs() <= 1e-6 * r.abs().max(1e-300), "{}: dN/dl0 {dr} vs {r} at l={l}", law.name());
+        assert!(
+            (dr - r).abs() <= 1e-6 * r.abs().max(1e-300),
+            "{}: dN/dl0 {dr} vs {r} at l={l}",
+            law.name()
+        );
     }
 }
 
@@ -41,7 +55,10 @@ fn measure_potential_is_the_paper_power_law() {
 fn linear_elastic_derivatives_and_slack() {
     let ea = 68e9 * 0.01;
     check_derivatives(&LinearElastic { ea, tension_only: false }, 7.0, &[6.9, 7.0, 7.1]);
-    let cable = LinearElastic { ea: 2e5, tension_only: true };
+    let cable = LinearElastic {
+        ea: 2e5,
+        tension_only: true,
+    };
     check_derivatives(&cable, 2.0, &[2.01, 2.5]);
     let slack = cable.eval(1.9, 2.0);
     assert_eq!((slack.force, slack.stiffness, cable.energy(1.9, 2.0)), (0.0, 0.0, 0.0));
@@ -86,8 +103,16 @@ fn ogden_compression_branch_is_c1_and_softening() {
         // Just below the junction the branch must meet the Ogden value and slope: the gap
         // is O(δ·F'') for δ = 1e-9, far below 1e-6 relative.
         let (f_b, df_b) = cord.nominal_stress(junction - 1e-9);
-        assert!((f_b - f_ogden).abs() <= 1e-6 * df_ogden, "F jump {} at λj={junction}", f_b - f_ogden);
-        assert!((df_b - df_ogden).abs() <= 1e-6 * df_ogden, "F' jump {} at λj={junction}", df_b - df_ogden);
+        assert!(
+            (f_b - f_ogden).abs() <= 1e-6 * df_ogden,
+            "F jump {} at λj={junction}",
+            f_b - f_ogden
+        );
+        assert!(
+            (df_b - df_ogden).abs() <= 1e-6 * df_ogden,
+            "F' jump {} at λj={junction}",
+            df_b - df_ogden
+        );
         // Softening: slope decreases monotonically as λ falls, down to r·F'_j at λ = 0.
         let mut prev = df_b;
         for i in 1..=100 {
@@ -96,7 +121,11 @@ fn ogden_compression_branch_is_c1_and_softening() {
             assert!(df < prev && df > 0.0, "not softening at λ={lambda}");
             prev = df;
         }
-        assert!((prev / df_ogden - r).abs() < 1e-9, "slope ratio at λ=0 is {} not {r}", prev / df_ogden);
+        assert!(
+            (prev / df_ogden - r).abs() < 1e-9,
+            "slope ratio at λ=0 is {} not {r}",
+            prev / df_ogden
+        );
         // And it stays far softer than the Ogden curve, which stiffens in compression.
         let (f_half, _) = cord.nominal_stress(0.5 * junction);
         let (f_half_ogden, _) = ogden_nominal_stress(&cord.terms, 0.5 * junction);

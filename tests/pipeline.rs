@@ -42,23 +42,11 @@ fn rayleigh_from_table_2_gives_table_3() {
     // 1e-13 relative is ~500 ulp, room for the cancellation in ω_j² − ω_i² (ratio 292).
     let alpha = 2.0 * zeta * wi * wj / (wi + wj);
     let beta = 2.0 * zeta / (wi + wj);
-    assert!(
-        (r.alpha / alpha - 1.0).abs() < 1e-13,
-        "α {} vs closed form {alpha}",
-        r.alpha
-    );
-    assert!(
-        (r.beta / beta - 1.0).abs() < 1e-13,
-        "β {} vs closed form {beta}",
-        r.beta
-    );
+    assert!((r.alpha / alpha - 1.0).abs() < 1e-13, "α {} vs closed form {alpha}", r.alpha);
+    assert!((r.beta / beta - 1.0).abs() < 1e-13, "β {} vs closed form {beta}", r.beta);
     // And the damping they give is ζ at both chosen frequencies (same round-off budget).
     for w in [wi, wj] {
-        assert!(
-            (r.ratio_at(w) - zeta).abs() < 1e-13,
-            "ζ({w}) = {}",
-            r.ratio_at(w)
-        );
+        assert!((r.ratio_at(w) - zeta).abs() < 1e-13, "ζ({w}) = {}", r.ratio_at(w));
     }
     // Between the two modes Rayleigh damping dips below ζ, outside it rises above:
     // ratio_at must be the function ζ(ω) = α/2ω + βω/2, not a constant.
@@ -133,15 +121,7 @@ fn try_newmark_sdof(
         duration: dt * steps as f64,
         max_cuts: 0,
     };
-    let mut nm = Newmark::new(
-        asm,
-        vec![m],
-        vec![v0],
-        vec![0.0],
-        params,
-        rayleigh,
-        DampingTangent::LastConverged,
-    );
+    let mut nm = Newmark::new(asm, vec![m], vec![v0], vec![0.0], params, rayleigh, DampingTangent::LastConverged);
     let no_load = |_: f64, f: &mut [f64]| f.fill(0.0);
     let label = |d: usize| format!("dof {d}");
     let mut out = vec![(nm.u[0] - rest_x, nm.v[0])];
@@ -153,18 +133,8 @@ fn try_newmark_sdof(
     Ok(out)
 }
 
-fn newmark_sdof(
-    m: f64,
-    k: f64,
-    rest_x: f64,
-    x0: f64,
-    v0: f64,
-    dt: f64,
-    steps: usize,
-    rayleigh: Rayleigh,
-) -> Vec<(f64, f64)> {
-    try_newmark_sdof(m, k, rest_x, x0, v0, dt, steps, rayleigh)
-        .unwrap_or_else(|e| panic!("a linear Newmark step failed: {e}"))
+fn newmark_sdof(m: f64, k: f64, rest_x: f64, x0: f64, v0: f64, dt: f64, steps: usize, rayleigh: Rayleigh) -> Vec<(f64, f64)> {
+    try_newmark_sdof(m, k, rest_x, x0, v0, dt, steps, rayleigh).unwrap_or_else(|e| panic!("a linear Newmark step failed: {e}"))
 }
 
 /// Undamped: average acceleration is the trapezoidal rule on (x, v), whose amplification
@@ -191,13 +161,8 @@ fn newmark_sdof_matches_closed_form_recurrence() {
     let mut worst = 0.0_f64;
     for (n, &(x, v)) in run.iter().enumerate() {
         let a = n as f64 * phi;
-        let (xe, ve) = (
-            x0 * a.cos() + v0 / w * a.sin(),
-            -x0 * w * a.sin() + v0 * a.cos(),
-        );
-        worst = worst
-            .max((x - xe).abs() / amplitude)
-            .max((v - ve).abs() / (w * amplitude));
+        let (xe, ve) = (x0 * a.cos() + v0 / w * a.sin(), -x0 * w * a.sin() + v0 * a.cos());
+        worst = worst.max((x - xe).abs() / amplitude).max((v - ve).abs() / (w * amplitude));
     }
     eprintln!("undamped SDOF: worst deviation from the recurrence {worst:.2e} of the amplitude");
     assert!(
@@ -219,10 +184,7 @@ fn newmark_sdof_matches_closed_form_recurrence() {
 #[test]
 fn newmark_damped_sdof_matches_amplification_matrix() {
     let (m, k): (f64, f64) = (2.0, 800.0);
-    let rayleigh = Rayleigh {
-        alpha: 0.8,
-        beta: 0.002,
-    }; // c/m = 0.8 + 0.002·400 = 1.6: ζ = 0.04
+    let rayleigh = Rayleigh { alpha: 0.8, beta: 0.002 }; // c/m = 0.8 + 0.002·400 = 1.6: ζ = 0.04
     let c = rayleigh.alpha * m + rayleigh.beta * k;
     let (x0, v0, dt, steps): (f64, f64, f64, usize) = (0.01, 0.3, 0.02, 500);
     let a = Matrix2::new(0.0, 1.0, -k / m, -c / m);
@@ -234,14 +196,10 @@ fn newmark_damped_sdof_matches_amplification_matrix() {
     let mut z = Vector2::new(x0, v0);
     let mut worst = 0.0_f64;
     for &(x, v) in &run {
-        worst = worst
-            .max((x - z[0]).abs() / amplitude)
-            .max((v - z[1]).abs() / (w * amplitude));
+        worst = worst.max((x - z[0]).abs() / amplitude).max((v - z[1]).abs() / (w * amplitude));
         z = t * z;
     }
-    eprintln!(
-        "damped SDOF: worst deviation from the amplification matrix {worst:.2e} of the amplitude"
-    );
+    eprintln!("damped SDOF: worst deviation from the amplification matrix {worst:.2e} of the amplitude");
     assert!(
         worst < 1e-10,
         "damped Newmark vs amplification matrix: {worst:.3e} of the amplitude"
@@ -282,10 +240,7 @@ fn newmark_rayleigh_decay_matches_zeta() {
     for (i, pair) in peaks.windows(2).enumerate() {
         let delta = (pair[0] / pair[1]).ln();
         let measured = delta / (4.0 * PI * PI + delta * delta).sqrt();
-        eprintln!(
-            "decay cycle {i}: ζ = {measured:.6} ({:+.2e} relative)",
-            measured / zeta - 1.0
-        );
+        eprintln!("decay cycle {i}: ζ = {measured:.6} ({:+.2e} relative)", measured / zeta - 1.0);
         assert!(
             (measured / zeta - 1.0).abs() <= 0.01,
             "cycle {i}: ζ from decrement {measured:.6} vs {zeta}"
@@ -308,14 +263,8 @@ fn newmark_rayleigh_decay_matches_zeta() {
 fn newmark_newton_floor_at_small_steps() {
     let (m, k): (f64, f64) = (2.0, 800.0);
     let dt = 2.0 * PI / (k / m).sqrt() / 1000.0;
-    let rayleigh = Rayleigh {
-        alpha: 2.0,
-        beta: 0.0,
-    };
-    assert!(
-        try_newmark_sdof(m, k, 0.0, 0.01, 0.0, dt, 2000, rayleigh).is_ok(),
-        "at the origin"
-    );
+    let rayleigh = Rayleigh { alpha: 2.0, beta: 0.0 };
+    assert!(try_newmark_sdof(m, k, 0.0, 0.01, 0.0, dt, 2000, rayleigh).is_ok(), "at the origin");
     if let Err(e) = try_newmark_sdof(m, k, 1.0, 0.01, 0.0, dt, 2000, rayleigh) {
         panic!("the same oscillator 1 m from the origin: {e}");
     }
@@ -365,10 +314,7 @@ fn string_with_mid_mass_lateral_frequency() {
         ],
         node_groups: BTreeMap::new(),
     };
-    let law: Arc<dyn ForceLaw> = Arc::new(LinearElastic {
-        ea,
-        tension_only: true,
-    });
+    let law: Arc<dyn ForceLaw> = Arc::new(LinearElastic { ea, tension_only: true });
     let elements = Elements {
         laws: vec![law.clone(), law],
         rest: vec![l0, l0],
@@ -391,25 +337,12 @@ fn string_with_mid_mass_lateral_frequency() {
             i + 1,
             modes.omega2[i]
         );
-        assert!(
-            rel < 1e-9,
-            "mode {}: ω² = {} vs {expected} (rel {rel:.2e})",
-            i + 1,
-            modes.omega2[i]
-        );
+        assert!(rel < 1e-9, "mode {}: ω² = {} vs {expected} (rel {rel:.2e})", i + 1, modes.omega2[i]);
     }
     // The two lateral modes move the mass across the string (φ·e = 0).
     for i in 0..2 {
-        let phi = Vector3::new(
-            modes.shapes[(0, i)],
-            modes.shapes[(1, i)],
-            modes.shapes[(2, i)],
-        );
-        assert!(
-            phi.dot(&e).abs() < 1e-9 * phi.norm(),
-            "mode {} is not lateral: {phi:?}",
-            i + 1
-        );
+        let phi = Vector3::new(modes.shapes[(0, i)], modes.shapes[(1, i)], modes.shapes[(2, i)]);
+        assert!(phi.dot(&e).abs() < 1e-9 * phi.norm(), "mode {} is not lateral: {phi:?}", i + 1);
     }
 }
 
@@ -448,14 +381,7 @@ fn real_equilibrium(cfg: &CaseConfig) -> RealEquilibrium {
     let ff = cfg.formfinding.as_ref().expect("the paper case form-finds");
     let eq = form_find(&model, &ff.measure.elements(&model).unwrap(), &cfg.newton).unwrap();
     let forces = balanced_forces(&model, &eq.positions, &eq.forces);
-    let sub = substitute(
-        &model,
-        &eq.positions,
-        &forces,
-        laws,
-        cfg.substitution.prestress_scale,
-    )
-    .unwrap();
+    let sub = substitute(&model, &eq.positions, &forces, laws, cfg.substitution.prestress_scale).unwrap();
     let density: Vec<f64> = model
         .members
         .iter()
@@ -492,15 +418,8 @@ fn paper_model_eigen_analysis() {
     let m = modes(&k, &mass, &dofs, &eq.model).unwrap();
     let n = dofs.len();
     assert_eq!(m.omega2.len(), n);
-    assert!(
-        m.omega2.iter().all(|&w2| w2 > 0.0),
-        "non-positive eigenvalue: {:?}",
-        &m.omega2[..3]
-    );
-    assert!(
-        m.omega2.windows(2).all(|p| p[0] <= p[1]),
-        "ω² not ascending"
-    );
+    assert!(m.omega2.iter().all(|&w2| w2 > 0.0), "non-positive eigenvalue: {:?}", &m.omega2[..3]);
+    assert!(m.omega2.windows(2).all(|p| p[0] <= p[1]), "ω² not ascending");
 
     // ‖C‖₂ = largest |eigenvalue| of C = ω²_max (C is symmetric positive definite here).
     let c_norm = m.omega2[n - 1];
@@ -516,21 +435,13 @@ fn paper_model_eigen_analysis() {
         }
         worst_res = worst_res.max(r2.sqrt() / c_norm);
         for l in 0..n {
-            let g: f64 = (0..n)
-                .map(|i| m.shapes[(i, j)] * mass[i] * m.shapes[(i, l)])
-                .sum();
+            let g: f64 = (0..n).map(|i| m.shapes[(i, j)] * mass[i] * m.shapes[(i, l)]).sum();
             worst_orth = worst_orth.max((g - f64::from(u8::from(j == l))).abs());
         }
     }
     eprintln!("eigen residual {worst_res:.2e}·‖C‖, M-orthogonality {worst_orth:.2e} (tolerance {tol:.2e})");
-    assert!(
-        worst_res < tol,
-        "‖Kφ − ω²Mφ‖ (M^-½-scaled) = {worst_res:.3e}·‖C‖ > {tol:.3e}"
-    );
-    assert!(
-        worst_orth < tol,
-        "max |ΦᵀMΦ − I| = {worst_orth:.3e} > {tol:.3e}"
-    );
+    assert!(worst_res < tol, "‖Kφ − ω²Mφ‖ (M^-½-scaled) = {worst_res:.3e}·‖C‖ > {tol:.3e}");
+    assert!(worst_orth < tol, "max |ΦᵀMΦ − I| = {worst_orth:.3e} > {tol:.3e}");
 
     // The ten highest modes are strut-axial: most of their strain energy φᵀKφ = ω² is the
     // struts' material part (EA/l0)(J·Δφ)²; and they lie ≥ 100× above every cable mode.
@@ -544,31 +455,20 @@ fn paper_model_eigen_analysis() {
             .filter(|(_, mem)| mem.kind == MemberKind::Strut)
             .map(|(s, mem)| {
                 let st = &asm.states[s];
-                let stretch = st
-                    .dir
-                    .dot(&(shapes[j][mem.nodes[1]] - shapes[j][mem.nodes[0]]));
+                let stretch = st.dir.dot(&(shapes[j][mem.nodes[1]] - shapes[j][mem.nodes[0]]));
                 st.stiffness * stretch * stretch
             })
             .sum();
         e / m.omega2[j]
     };
-    let struts = eq
-        .model
-        .members
-        .iter()
-        .filter(|mem| mem.kind == MemberKind::Strut)
-        .count();
+    let struts = eq.model.members.iter().filter(|mem| mem.kind == MemberKind::Strut).count();
     assert_eq!(struts, 10);
     for j in n - struts..n {
         let f = strut_fraction(j);
         // Strut axial stiffness EA/l0 ≈ 1e8 N/m against cable stiffnesses ≲ 1e2 N/m: a
         // strut-axial mode has all but ~1e-6 of its energy in the struts; 0.99 is far
         // from any mixed mode.
-        assert!(
-            f > 0.99,
-            "mode {} has only {f:.4} of its energy in strut stretching",
-            j + 1
-        );
+        assert!(f > 0.99, "mode {} has only {f:.4} of its energy in strut stretching", j + 1);
     }
     let lowest_strut = m.omega2[n - struts];
     let highest_cable = m.omega2[n - struts - 1];
@@ -600,11 +500,8 @@ impl Recorder for EnergyLog {
         Ok(())
     }
     fn frame(&mut self, frame: &Frame) -> RecordResult {
-        self.frames.push((
-            self.stage.expect("frame inside a stage"),
-            frame.time,
-            frame.energy,
-        ));
+        self.frames
+            .push((self.stage.expect("frame inside a stage"), frame.time, frame.energy));
         Ok(())
     }
 }
@@ -618,11 +515,7 @@ struct PaperRun {
 impl PaperRun {
     /// (time, energy) of every recorded step of a stage, the initial state first.
     fn frames(&self, stage: Stage) -> Vec<(f64, Energy)> {
-        self.log
-            .iter()
-            .filter(|f| f.0 == stage)
-            .map(|f| (f.1, f.2))
-            .collect()
+        self.log.iter().filter(|f| f.0 == stage).map(|f| (f.1, f.2)).collect()
     }
 }
 
@@ -632,13 +525,9 @@ fn paper_run() -> &'static PaperRun {
     // step (time step or fold step) whose Newton solve fails after its bounded cuts.
     RUN.get_or_init(|| {
         let cfg = paper_config();
-        assert_eq!(
-            cfg.outputs.every, 1,
-            "the independent checks need every step recorded"
-        );
+        assert_eq!(cfg.outputs.every, 1, "the independent checks need every step recorded");
         let mut log = EnergyLog::default();
-        let summary =
-            run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("paper pipeline failed: {e}"));
+        let summary = run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("paper pipeline failed: {e}"));
         PaperRun {
             cfg,
             summary,
@@ -657,11 +546,7 @@ fn paper_run() -> &'static PaperRun {
 #[test]
 fn free_vibration_conserves_energy() {
     let run = paper_run();
-    let fv = run
-        .summary
-        .free_vibration
-        .as_ref()
-        .expect("free vibration ran");
+    let fv = run.summary.free_vibration.as_ref().expect("free vibration ran");
     assert_eq!(fv.steps, 3000, "3 s at Δt = 1 ms");
     assert!(fv.max_kinetic > 0.0);
     eprintln!(
@@ -781,10 +666,7 @@ fn deployment_returns_to_prefold_shape() {
     let frames = run.frames(Stage::Deployment);
     assert_eq!(frames.len(), 8001);
     let e0 = frames[0].1.kinetic + frames[0].1.strain;
-    let scale = frames
-        .iter()
-        .map(|f| f.1.kinetic.max(f.1.strain))
-        .fold(0.0, f64::max);
+    let scale = frames.iter().map(|f| f.1.kinetic.max(f.1.strain)).fold(0.0, f64::max);
     let mut rise = (0.0_f64, 0.0);
     for (i, &(time, e)) in frames.iter().enumerate() {
         let err = (e.kinetic + e.strain + e.damping - e.external - e0).abs();
@@ -792,11 +674,7 @@ fn deployment_returns_to_prefold_shape() {
             err <= 0.01 * scale,
             "t = {time:.3} s: balance error {err:.3e} J vs max(SE, KE) {scale:.3e} J"
         );
-        assert!(
-            e.damping >= 0.0,
-            "t = {time:.3} s: negative dissipation {:.3e} J",
-            e.damping
-        );
+        assert!(e.damping >= 0.0, "t = {time:.3} s: negative dissipation {:.3e} J", e.damping);
         // From the first step with no launch force at either end on.
         if i > 0 && frames[i - 1].0 >= launch {
             let (p, now) = (frames[i - 1].1, e.kinetic + e.strain);

@@ -14,26 +14,49 @@ impl ModelSpec {
                     .map(|n| {
                         let mut support = [false; 3];
                         n.fix.iter().for_each(|a| support[a.index()] = true);
-                        Node { id: n.id.clone(), xyz: Vector3::from(n.xyz), support }
+                        Node {
+                            id: n.id.clone(),
+                            xyz: Vector3::from(n.xyz),
+                            support,
+                        }
                     })
                     .collect();
                 let index = |member: &str, id: &str| {
-                    nodes.iter().position(|n| n.id == id).ok_or_else(|| ModelError::UnknownNode { member: member.to_string(), node: id.to_string() })
+                    nodes.iter().position(|n| n.id == id).ok_or_else(|| ModelError::UnknownNode {
+                        member: member.to_string(),
+                        node: id.to_string(),
+                    })
                 };
                 let members = self
                     .members
                     .iter()
-                    .map(|m| Ok(Member { id: m.id.clone(), nodes: [index(&m.id, &m.nodes[0])?, index(&m.id, &m.nodes[1])?], kind: m.kind, groups: m.groups.clone() }))
+                    .map(|m| {
+                        Ok(Member {
+                            id: m.id.clone(),
+                            nodes: [index(&m.id, &m.nodes[0])?, index(&m.id, &m.nodes[1])?],
+                            kind: m.kind,
+                            groups: m.groups.clone(),
+                        })
+                    })
                     .collect::<Result<Vec<_>, ModelError>>()?;
                 let mut node_groups = std::collections::BTreeMap::new();
                 for (g, ids) in &self.groups {
                     let idx = ids
                         .iter()
-                        .map(|id| nodes.iter().position(|n| &n.id == id).ok_or_else(|| ModelError::UnknownGroupNode { group: g.clone(), node: id.clone() }))
+                        .map(|id| {
+                            nodes.iter().position(|n| &n.id == id).ok_or_else(|| ModelError::UnknownGroupNode {
+                                group: g.clone(),
+                                node: id.clone(),
+                            })
+                        })
                         .collect::<Result<Vec<_>, _>>()?;
                     node_groups.insert(g.clone(), idx);
                 }
-                Model { nodes, members, node_groups }
+                Model {
+                    nodes,
+                    members,
+                    node_groups,
+                }
             }
         };
         model.validate()?;

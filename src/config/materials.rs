@@ -60,8 +60,18 @@ pub struct MaterialSpec {
 impl MaterialSpec {
     pub fn law(&self) -> Arc<dyn ForceLaw> {
         match &self.law {
-            LawSpec::Elastic { youngs_modulus, tension_only } => Arc::new(LinearElastic { ea: youngs_modulus * self.area, tension_only: *tension_only }),
-            LawSpec::Ogden { terms, junction, softening } => Arc::new(OgdenCord::new(
+            LawSpec::Elastic {
+                youngs_modulus,
+                tension_only,
+            } => Arc::new(LinearElastic {
+                ea: youngs_modulus * self.area,
+                tension_only: *tension_only,
+            }),
+            LawSpec::Ogden {
+                terms,
+                junction,
+                softening,
+            } => Arc::new(OgdenCord::new(
                 terms.iter().map(|t| OgdenTerm { mu: t.mu, alpha: t.alpha }).collect(),
                 self.area,
                 *junction,
@@ -72,13 +82,24 @@ impl MaterialSpec {
 }
 
 fn elastic(e: f64, tension_only: bool, area: f64, density: f64, source: &str) -> MaterialSpec {
-    MaterialSpec { law: LawSpec::Elastic { youngs_modulus: e, tension_only }, area, density, source: source.into() }
+    MaterialSpec {
+        law: LawSpec::Elastic {
+            youngs_modulus: e,
+            tension_only,
+        },
+        area,
+        density,
+        source: source.into(),
+    }
 }
 
 /// Built-in materials. Struts are 0.01 m² sections as in the paper; cables 50 mm².
 /// A config's `materials` section adds to or overrides these by name.
 pub fn library() -> BTreeMap<String, MaterialSpec> {
-    let rubber_terms = OgdenCord::paper_terms().into_iter().map(|t| OgdenTermSpec { mu: t.mu, alpha: t.alpha }).collect();
+    let rubber_terms = OgdenCord::paper_terms()
+        .into_iter()
+        .map(|t| OgdenTermSpec { mu: t.mu, alpha: t.alpha })
+        .collect();
     BTreeMap::from([
         ("aluminium".into(), elastic(68e9, false, 0.01, 2700.0, "paper §3.1: E = 68 GPa, A = 0.01 m²; density 2700 kg/m³ (specific gravity 2.7, Table 3)")),
         ("steel".into(), elastic(200e9, false, 0.01, 7850.0, "structural steel, EN 1993-1-1 §3.2.6: E = 210 GPa nominal, 200 GPa used; 7850 kg/m³")),

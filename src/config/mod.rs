@@ -13,7 +13,14 @@ pub use validate::ConfigError;
 
 /// Parses and validates one case configuration. `origin` names the file in errors.
 pub fn parse_case(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
-    let cfg: CaseConfig = serde_saphyr::from_str(text).map_err(|e| ConfigError::Syntax { file: origin.to_string(), message: e.to_string() })?;
-    cfg.validate().map_err(|(field, message)| ConfigError::Value { file: origin.to_string(), field, message })?;
+    let cfg: CaseConfig = serde_saphyr::from_str(text).map_err(|e| ConfigError::Syntax {
+        file: origin.to_string(),
+        message: e.to_string(),
+    })?;
+    cfg.validate().map_err(|(field, message)| ConfigError::Value {
+        file: origin.to_string(),
+        field,
+        message,
+    })?;
     Ok(cfg)
 }

@@ -266,7 +266,11 @@ fn yes() -> bool {
 
 impl Default for OutputSpec {
     fn default() -> Self {
-        OutputSpec { every: 1, hdf5: true, mcap: true }
+        OutputSpec {
+            every: 1,
+            hdf5: true,
+            mcap: true,
+        }
     }
 }
 

@@ -38,29 +38,59 @@ impl CaseConfig {
         }
         if let Some(t) = &self.model.tower {
             if t.struts < 3 || t.stages < 1 {
-                return Err(("model.tower".into(), format!("struts = {}, stages = {}; need struts ≥ 3 and stages ≥ 1", t.struts, t.stages)));
+                return Err((
+                    "model.tower".into(),
+                    format!("struts = {}, stages = {}; need struts ≥ 3 and stages ≥ 1", t.struts, t.stages),
+                ));
             }
             positive("model.tower.radius", t.radius)?;
             positive("model.tower.strut_length", t.strut_length)?;
             within("model.tower.overlap", t.overlap, -1e-300, 1.0, "[0, 1)")?;
             if t.stage_height().is_nan() {
-                return Err(("model.tower.radius".into(), format!("{} m is too large for struts of {} m", t.radius, t.strut_length)));
+                return Err((
+                    "model.tower.radius".into(),
+                    format!("{} m is too large for struts of {} m", t.radius, t.strut_length),
+                ));
             }
         }
         let lib = self.material_library();
-        for (field, name) in [("substitution.strut", &self.substitution.strut), ("substitution.cable", &self.substitution.cable)] {
+        for (field, name) in [
+            ("substitution.strut", &self.substitution.strut),
+            ("substitution.cable", &self.substitution.cable),
+        ] {
             let Some(mat) = lib.get(name) else {
-                return Err((field.into(), format!("unknown material `{name}`; known: {}", lib.keys().cloned().collect::<Vec<_>>().join(", "))));
+                return Err((
+                    field.into(),
+                    format!(
+                        "unknown material `{name}`; known: {}",
+                        lib.keys().cloned().collect::<Vec<_>>().join(", ")
+                    ),
+                ));
             };
             positive(&format!("materials.{name}.area"), mat.area)?;
             positive(&format!("materials.{name}.density"), mat.density)?;
             match &mat.law {
-                super::LawSpec::Elastic { youngs_modulus, .. } => positive(&format!("materials.{name}.law.elastic.youngs_modulus"), *youngs_modulus)?,
-                super::LawSpec::Ogden { junction, softening, terms } => {
-                    within(&format!("materials.{name}.law.ogden.junction"), *junction, 0.0, 1.0 + 1e-12, "(0, 1]")?;
+                super::LawSpec::Elastic { youngs_modulus, .. } => {
+                    positive(&format!("materials.{name}.law.elastic.youngs_modulus"), *youngs_modulus)?
+                }
+                super::LawSpec::Ogden {
+                    junction,
+                    softening,
+                    terms,
+                } => {
+                    within(
+                        &format!("materials.{name}.law.ogden.junction"),
+                        *junction,
+                        0.0,
+                        1.0 + 1e-12,
+                        "(0, 1]",
+                    )?;
                     within(&format!("materials.{name}.law.ogden.softening"), *softening, 0.0, 1.0, "(0, 1)")?;
                     if terms.is_empty() || terms.iter().any(|t| t.alpha == 0.0) {
-                        return Err((format!("materials.{name}.law.ogden.terms"), "need at least one term, each with α ≠ 0".into()));
+                        return Err((
+                            format!("materials.{name}.law.ogden.terms"),
+                            "need at least one term, each with α ≠ 0".into(),
+                        ));
                     }
                 }
             }
@@ -68,10 +98,16 @@ impl CaseConfig {
         positive("substitution.prestress_scale", self.substitution.prestress_scale)?;
         if self.formfinding.is_none() {
             if let Some(m) = self.model.members.iter().find(|m| m.rest_length.is_none_or(|l| !(l > 0.0))) {
-                return Err((format!("model.members.{}.rest_length", m.id), "without `formfinding` every member needs a rest_length > 0".into()));
+                return Err((
+                    format!("model.members.{}.rest_length", m.id),
+                    "without `formfinding` every member needs a rest_length > 0".into(),
+                ));
             }
             if self.model.tower.is_some() {
-                return Err(("formfinding".into(), "a generated tower needs form-finding (its nominal shape is not an equilibrium)".into()));
+                return Err((
+                    "formfinding".into(),
+                    "a generated tower needs form-finding (its nominal shape is not an equilibrium)".into(),
+                ));
             }
         }
         let dof_count = 3 * model.node_count() - model.support_count();
@@ -80,12 +116,18 @@ impl CaseConfig {
             let given = r.alpha.is_some() || r.beta.is_some();
             let from_modes = r.modes.is_some() || r.auto_modes.is_some();
             if given == from_modes || (given && (r.alpha.is_none() || r.beta.is_none())) || (r.modes.is_some() && r.auto_modes.is_some()) {
-                return Err(("eigen.rayleigh".into(), "give `alpha` and `beta`, or `modes` (or `auto_modes`) with `ratios`".into()));
+                return Err((
+                    "eigen.rayleigh".into(),
+                    "give `alpha` and `beta`, or `modes` (or `auto_modes`) with `ratios`".into(),
+                ));
             }
             if let Some(modes) = r.modes {
                 for (k, m) in modes.iter().enumerate() {
                     if *m < 1 || *m > dof_count {
-                        return Err((format!("eigen.rayleigh.modes[{k}]"), format!("is {m}; must lie in 1..={dof_count} (the model has {dof_count} DOF)")));
+                        return Err((
+                            format!("eigen.rayleigh.modes[{k}]"),
+                            format!("is {m}; must lie in 1..={dof_count} (the model has {dof_count} DOF)"),
+                        ));
                     }
                 }
                 if modes[0] == modes[1] {
@@ -94,7 +136,10 @@ impl CaseConfig {
             }
             if from_modes {
                 let Some(ratios) = r.ratios else {
-                    return Err(("eigen.rayleigh.ratios".into(), "needed with `modes`: the damping ratio of each mode".into()));
+                    return Err((
+                        "eigen.rayleigh.ratios".into(),
+                        "needed with `modes`: the damping ratio of each mode".into(),
+                    ));
                 };
                 for (k, z) in ratios.iter().enumerate() {
                     within(&format!("eigen.rayleigh.ratios[{k}]"), *z, -1e-300, 1.0, "[0, 1)")?;
@@ -127,12 +172,19 @@ impl CaseConfig {
                 return Err(("folding.steps".into(), "is 0; must be ≥ 1".into()));
             }
             for (k, p) in f.prescribe.iter().enumerate() {
-                model.group(&p.group).map_err(|e| (format!("folding.prescribe[{k}].group"), e.to_string()))?;
+                model
+                    .group(&p.group)
+                    .map_err(|e| (format!("folding.prescribe[{k}].group"), e.to_string()))?;
                 if p.to_base == p.displacement.is_some() {
-                    return Err((format!("folding.prescribe[{k}]"), "give either `to_base: true` or `displacement`".into()));
+                    return Err((
+                        format!("folding.prescribe[{k}]"),
+                        "give either `to_base: true` or `displacement`".into(),
+                    ));
                 }
                 if p.to_base {
-                    model.group("base").map_err(|e| (format!("folding.prescribe[{k}].to_base"), e.to_string()))?;
+                    model
+                        .group("base")
+                        .map_err(|e| (format!("folding.prescribe[{k}].to_base"), e.to_string()))?;
                 }
             }
         }

@@ -25,9 +25,7 @@ impl NodalLoad {
     pub fn factor(&self, t: f64) -> f64 {
         match self.profile {
             LoadProfile::Step => f64::from(t >= 0.0 && t < self.duration),
-            LoadProfile::HalfSine if (0.0..=self.duration).contains(&t) => {
-                (std::f64::consts::PI * t / self.duration).sin()
-            }
+            LoadProfile::HalfSine if (0.0..=self.duration).contains(&t) => (std::f64::consts::PI * t / self.duration).sin(),
             LoadProfile::HalfSine => 0.0,
         }
     }

@@ -119,22 +119,13 @@ impl<'a> Newmark<'a> {
     fn damping_force(&self, k: &Mat<f64>, v: &[f64]) -> Vec<f64> {
         let n = v.len();
         (0..n)
-            .map(|i| {
-                self.rayleigh.alpha * self.mass[i] * v[i]
-                    + self.rayleigh.beta * (0..n).map(|j| k[(i, j)] * v[j]).sum::<f64>()
-            })
+            .map(|i| self.rayleigh.alpha * self.mass[i] * v[i] + self.rayleigh.beta * (0..n).map(|j| k[(i, j)] * v[j]).sum::<f64>())
             .collect()
     }
 
     fn ledger_now(&self, damping: f64, external: f64) -> Energy {
         Energy {
-            kinetic: 0.5
-                * self
-                    .mass
-                    .iter()
-                    .zip(&self.v)
-                    .map(|(m, v)| m * v * v)
-                    .sum::<f64>(),
+            kinetic: 0.5 * self.mass.iter().zip(&self.v).map(|(m, v)| m * v * v).sum::<f64>(),
             strain: self.asm.elements.strain_energy(self.asm.model, &self.asm.x),
             damping,
             external,
@@ -217,9 +208,7 @@ impl<'a> Newmark<'a> {
         };
         // Commit: accelerations, velocities, damping force, energy ledger.
         self.asm.set_free(&u);
-        let a_next: Vec<f64> = (0..n)
-            .map(|i| (u[i] - base[i]) / (beta * dt * dt))
-            .collect();
+        let a_next: Vec<f64> = (0..n).map(|i| (u[i] - base[i]) / (beta * dt * dt)).collect();
         let v_next: Vec<f64> = (0..n)
             .map(|i| self.v[i] + dt * ((1.0 - gamma) * self.a[i] + gamma * a_next[i]))
             .collect();

@@ -19,9 +19,15 @@ impl LinearElastic {
 impl ForceLaw for LinearElastic {
     fn eval(&self, l: f64, l0: f64) -> LawEval {
         if self.slack(l, l0) {
-            return LawEval { force: 0.0, stiffness: 0.0 };
+            return LawEval {
+                force: 0.0,
+                stiffness: 0.0,
+            };
         }
-        LawEval { force: self.ea * (l - l0) / l0, stiffness: self.ea / l0 }
+        LawEval {
+            force: self.ea * (l - l0) / l0,
+            stiffness: self.ea / l0,
+        }
     }
 
     fn energy(&self, l: f64, l0: f64) -> f64 {

@@ -21,7 +21,10 @@ pub fn ogden_nominal_stress(terms: &[OgdenTerm], lambda: f64) -> (f64, f64) {
 
 /// ∫ F dλ of the Ogden curve: Σ μ_i/α_i (λ^α_i + 2 λ^(−α_i/2)).
 fn ogden_energy_density(terms: &[OgdenTerm], lambda: f64) -> f64 {
-    terms.iter().map(|t| t.mu / t.alpha * (lambda.powf(t.alpha) + 2.0 * lambda.powf(-t.alpha / 2.0))).sum()
+    terms
+        .iter()
+        .map(|t| t.mu / t.alpha * (lambda.powf(t.alpha) + 2.0 * lambda.powf(-t.alpha / 2.0)))
+        .sum()
 }
 
 /// Rubber cord: N = A0 F(λ), λ = l/l0 (paper eqs 5, 9).
@@ -76,7 +79,17 @@ impl OgdenCord {
         let b = s * s - a * junction;
         let c = -s - fj;
         let energy_at_junction = ogden_energy_density(&terms, junction) - ogden_energy_density(&terms, 1.0);
-        OgdenCord { terms, area, junction, branch: Branch { a, b, c, energy_at_junction } }
+        OgdenCord {
+            terms,
+            area,
+            junction,
+            branch: Branch {
+                a,
+                b,
+                c,
+                energy_at_junction,
+            },
+        }
     }
 
     /// Nominal stress F(λ) [Pa] and dF/dλ [Pa] including the compression branch.
@@ -96,7 +109,12 @@ impl OgdenCord {
         if lambda >= self.junction {
             return ogden_energy_density(&self.terms, lambda) - ogden_energy_density(&self.terms, 1.0);
         }
-        let Branch { a, b, c, energy_at_junction } = self.branch;
+        let Branch {
+            a,
+            b,
+            c,
+            energy_at_junction,
+        } = self.branch;
         let primitive = |x: f64| -2.0 / (3.0 * a) * (a * x + b).max(0.0).powf(1.5) - c * x;
         energy_at_junction + primitive(lambda) - primitive(self.junction)
     }
@@ -105,7 +123,10 @@ impl OgdenCord {
 impl ForceLaw for OgdenCord {
     fn eval(&self, l: f64, l0: f64) -> LawEval {
         let (f, df) = self.nominal_stress(l / l0);
-        LawEval { force: self.area * f, stiffness: self.area * df / l0 }
+        LawEval {
+            force: self.area * f,
+            stiffness: self.area * df / l0,
+        }
     }
 
     fn energy(&self, l: f64, l0: f64) -> f64 {

@@ -54,7 +54,13 @@ fn default_overlap() -> f64 {
 impl TowerSpec {
     /// The paper's model: 5-strut prisms, 2 stages, 7 m struts (Table 1).
     pub fn paper() -> Self {
-        TowerSpec { struts: 5, stages: 2, radius: 3.0, strut_length: 7.0, overlap: 0.1 }
+        TowerSpec {
+            struts: 5,
+            stages: 2,
+            radius: 3.0,
+            strut_length: 7.0,
+            overlap: 0.1,
+        }
     }
 
     /// Strut span angle of the regular prism, θ = −(π/2 + π/n).
@@ -104,7 +110,12 @@ impl TowerSpec {
 
         let mut members = Vec::new();
         let mut add = |id: String, a: usize, c: usize, kind: MemberKind, group: String| {
-            members.push(Member { id, nodes: [a, c], kind, groups: vec![group] });
+            members.push(Member {
+                id,
+                nodes: [a, c],
+                kind,
+                groups: vec![group],
+            });
         };
         for s in 0..k {
             for i in 0..n {
@@ -115,25 +126,67 @@ impl TowerSpec {
             }
         }
         for i in 0..n {
-            add(format!("ring_base_{i}"), b(0, i), b(0, i + 1), MemberKind::Cable, "ring_base".into());
-            add(format!("ring_top_{i}"), t(k - 1, i), t(k - 1, i + 1), MemberKind::Cable, "ring_top".into());
+            add(
+                format!("ring_base_{i}"),
+                b(0, i),
+                b(0, i + 1),
+                MemberKind::Cable,
+                "ring_base".into(),
+            );
+            add(
+                format!("ring_top_{i}"),
+                t(k - 1, i),
+                t(k - 1, i + 1),
+                MemberKind::Cable,
+                "ring_top".into(),
+            );
         }
         for s in 0..k.saturating_sub(1) {
             for i in 0..n {
-                add(format!("saddle_a{s}_{i}"), b(s + 1, i), t(s, i), MemberKind::Cable, format!("saddle_a{s}"));
-                add(format!("saddle_b{s}_{i}"), b(s + 1, i), t(s, i + 1), MemberKind::Cable, format!("saddle_b{s}"));
-                add(format!("vertical_lo{s}_{i}"), b(s + 1, i), b(s, i), MemberKind::Cable, format!("vertical_lo{s}"));
-                add(format!("vertical_up{s}_{i}"), t(s + 1, i), t(s, i), MemberKind::Cable, format!("vertical_up{s}"));
+                add(
+                    format!("saddle_a{s}_{i}"),
+                    b(s + 1, i),
+                    t(s, i),
+                    MemberKind::Cable,
+                    format!("saddle_a{s}"),
+                );
+                add(
+                    format!("saddle_b{s}_{i}"),
+                    b(s + 1, i),
+                    t(s, i + 1),
+                    MemberKind::Cable,
+                    format!("saddle_b{s}"),
+                );
+                add(
+                    format!("vertical_lo{s}_{i}"),
+                    b(s + 1, i),
+                    b(s, i),
+                    MemberKind::Cable,
+                    format!("vertical_lo{s}"),
+                );
+                add(
+                    format!("vertical_up{s}_{i}"),
+                    t(s + 1, i),
+                    t(s, i),
+                    MemberKind::Cable,
+                    format!("vertical_up{s}"),
+                );
             }
         }
         let ring = |f: &dyn Fn(usize) -> usize| (0..n).map(f).collect::<Vec<_>>();
         let mut node_groups = std::collections::BTreeMap::new();
         node_groups.insert("base".to_string(), ring(&|i| b(0, i)));
         node_groups.insert("top".to_string(), ring(&|i| t(k - 1, i)));
-        let middle: Vec<usize> = (0..k.saturating_sub(1)).flat_map(|s| ring(&|i| t(s, i)).into_iter().chain(ring(&|i| b(s + 1, i)))).collect();
+        let middle: Vec<usize> = (0..k.saturating_sub(1))
+            .flat_map(|s| ring(&|i| t(s, i)).into_iter().chain(ring(&|i| b(s + 1, i))))
+            .collect();
         if !middle.is_empty() {
             node_groups.insert("middle".to_string(), middle);
         }
-        Model { nodes, members, node_groups }
+        Model {
+            nodes,
+            members,
+            node_groups,
+        }
     }
 }

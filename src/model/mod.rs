@@ -79,15 +79,22 @@ impl Model {
 
     /// Nodes of a group, or an error naming the group and the ones that exist.
     pub fn group(&self, name: &str) -> Result<&[usize], ModelError> {
-        self.node_groups.get(name).map(Vec::as_slice).ok_or_else(|| ModelError::UnknownGroup {
-            group: name.to_string(),
-            known: self.node_groups.keys().cloned().collect::<Vec<_>>().join(", "),
-        })
+        self.node_groups
+            .get(name)
+            .map(Vec::as_slice)
+            .ok_or_else(|| ModelError::UnknownGroup {
+                group: name.to_string(),
+                known: self.node_groups.keys().cloned().collect::<Vec<_>>().join(", "),
+            })
     }
 
     /// Members belonging to a member group.
     pub fn members_in_group<'a>(&'a self, group: &'a str) -> impl Iterator<Item = usize> + 'a {
-        self.members.iter().enumerate().filter(move |(_, m)| m.groups.iter().any(|g| g == group)).map(|(i, _)| i)
+        self.members
+            .iter()
+            .enumerate()
+            .filter(move |(_, m)| m.groups.iter().any(|g| g == group))
+            .map(|(i, _)| i)
     }
 
     /// Largest distance between two nodes' bounding-box corners: the model's length scale.

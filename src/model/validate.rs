@@ -13,7 +13,12 @@ pub enum ModelError {
     #[error("member `{member}` has zero length (nodes `{a}` and `{b}` coincide); move a node or remove the member")]
     ZeroLength { member: String, a: String, b: String },
     #[error("members `{member}` and `{other}` join the same nodes `{a}` and `{b}`; remove one of them")]
-    DuplicateMember { member: String, other: String, a: String, b: String },
+    DuplicateMember {
+        member: String,
+        other: String,
+        a: String,
+        b: String,
+    },
     #[error("node `{node}` has no members; connect it or remove it")]
     UnusedNode { node: String },
     #[error("node group `{group}` names unknown node `{node}`")]
@@ -39,7 +44,11 @@ impl Model {
             let [a, b] = m.nodes;
             let (na, nb) = (&self.nodes[a], &self.nodes[b]);
             if a == b || (na.xyz - nb.xyz).norm() <= 1e-12 * self.size().max(1.0) {
-                return Err(ModelError::ZeroLength { member: m.id.clone(), a: na.id.clone(), b: nb.id.clone() });
+                return Err(ModelError::ZeroLength {
+                    member: m.id.clone(),
+                    a: na.id.clone(),
+                    b: nb.id.clone(),
+                });
             }
             if let Some(other) = pairs.insert((a.min(b), a.max(b)), &m.id) {
                 return Err(ModelError::DuplicateMember {
@@ -53,7 +62,9 @@ impl Model {
             used[b] = true;
         }
         if let Some(i) = used.iter().position(|u| !u) {
-            return Err(ModelError::UnusedNode { node: self.nodes[i].id.clone() });
+            return Err(ModelError::UnusedNode {
+                node: self.nodes[i].id.clone(),
+            });
         }
         self.check_rigid_body_supports()
     }
@@ -91,7 +102,14 @@ impl Model {
         let eig = gram.symmetric_eigen();
         // Rotation columns are scaled by r/size ≤ 1, so a supported motion has an
         // eigenvalue of order (r/size)², far above 1e-10 for any sensible geometry.
-        let names = ["translation along x", "translation along y", "translation along z", "rotation about x", "rotation about y", "rotation about z"];
+        let names = [
+            "translation along x",
+            "translation along y",
+            "translation along z",
+            "rotation about x",
+            "rotation about y",
+            "rotation about z",
+        ];
         let free: Vec<&str> = (0..6)
             .filter(|&k| eig.eigenvalues[k] < 1e-10)
             .map(|k| {

@@ -32,13 +32,27 @@ impl Recorder for Recorders {
 }
 
 /// The file recorders a case's `outputs` asks for: `result.h5` and `replay.mcap` in `dir`.
-pub fn file_recorders(outputs: &OutputSpec, dir: &Path, case_id: &str, config_yaml: &str) -> Result<Vec<Box<dyn Recorder>>, Box<dyn std::error::Error + Send + Sync>> {
+pub fn file_recorders(
+    outputs: &OutputSpec,
+    dir: &Path,
+    case_id: &str,
+    config_yaml: &str,
+) -> Result<Vec<Box<dyn Recorder>>, Box<dyn std::error::Error + Send + Sync>> {
     let mut out: Vec<Box<dyn Recorder>> = Vec::new();
     if outputs.hdf5 {
-        out.push(Box::new(super::h5::Hdf5Recorder::create(&dir.join("result.h5"), case_id, config_yaml, outputs.every)?));
+        out.push(Box::new(super::h5::Hdf5Recorder::create(
+            &dir.join("result.h5"),
+            case_id,
+            config_yaml,
+            outputs.every,
+        )?));
     }
     if outputs.mcap {
-        out.push(Box::new(super::replay::McapRecorder::create(&dir.join("replay.mcap"), case_id, outputs.every)?));
+        out.push(Box::new(super::replay::McapRecorder::create(
+            &dir.join("replay.mcap"),
+            case_id,
+            outputs.every,
+        )?));
     }
     Ok(out)
 }

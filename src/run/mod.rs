@@ -54,7 +54,10 @@ pub fn default_jobs() -> usize {
 /// Reads, expands and validates a config file: everything that can fail before work.
 pub fn load(path: &Path) -> Result<(String, Vec<Case>), ConfigError> {
     let origin = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Io { file: origin.clone(), message: e.to_string() })?;
+    let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Io {
+        file: origin.clone(),
+        message: e.to_string(),
+    })?;
     expand(&text, &origin)
 }
 
@@ -64,8 +67,16 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
     let dir = opts.out.join(name);
     std::fs::create_dir_all(&dir)?;
     let progress = Progress::new(cases.len(), opts.quiet);
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(opts.jobs.max(1)).build().map_err(std::io::Error::other)?;
-    let outcomes: Vec<CaseOutcome> = pool.install(|| cases.par_iter().map(|case| run_one(case, &dir.join(&case.id), opts.force, &progress)).collect());
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.jobs.max(1))
+        .build()
+        .map_err(std::io::Error::other)?;
+    let outcomes: Vec<CaseOutcome> = pool.install(|| {
+        cases
+            .par_iter()
+            .map(|case| run_one(case, &dir.join(&case.id), opts.force, &progress))
+            .collect()
+    });
     progress.finish();
     sweep::write_summaries(&dir, &outcomes)?;
     Ok(outcomes)
@@ -103,7 +114,13 @@ fn run_one(case: &Case, dir: &Path, force: bool, progress: &Progress) -> CaseOut
         Err(reason) => (format!("failed: {reason}"), None),
     };
     progress.done(&case.id, &status, wall_seconds);
-    let outcome = CaseOutcome { id: case.id.clone(), params: case.params.clone(), status, wall_seconds, summary };
+    let outcome = CaseOutcome {
+        id: case.id.clone(),
+        params: case.params.clone(),
+        status,
+        wall_seconds,
+        summary,
+    };
     if let Ok(text) = serde_json::to_string_pretty(&outcome) {
         // Written last: its presence with "complete" is what marks the case done.
         let _ = std::fs::write(dir.join("outcome.json"), text);
@@ -117,7 +134,10 @@ fn execute(case: &Case, dir: &Path, progress: &Progress) -> Result<CaseSummary, 
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     std::fs::write(dir.join("case.yaml"), &case.yaml).map_err(|e| format!("cannot write case.yaml: {e}"))?;
     let mut recorders: Vec<Box<dyn Recorder>> = vec![Box::new(progress.case_bar(&case.id))];
-    recorders.extend(crate::record::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml).map_err(|e| format!("cannot create outputs: {e}"))?);
+    recorders.extend(
+        crate::record::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml)
+            .map_err(|e| format!("cannot create outputs: {e}"))?,
+    );
     let mut recorder = Recorders(recorders);
     let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_case(&case.config, &mut recorder)));
     let result = match run {
@@ -125,7 +145,11 @@ fn execute(case: &Case, dir: &Path, progress: &Progress) -> Result<CaseSummary, 
         Ok(Err(e)) => Err(e.to_string()),
         Err(panic) => Err(format!(
             "panic: {}",
-            panic.downcast_ref::<String>().cloned().or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string())).unwrap_or_default()
+            panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default()
         )),
     };
     let status = match &result {

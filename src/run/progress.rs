@@ -15,9 +15,16 @@ pub struct Progress {
 impl Progress {
     pub fn new(cases: usize, quiet: bool) -> Self {
         let hidden = quiet || std::env::var_os("CI").is_some() || !std::io::stderr().is_terminal();
-        let multi = MultiProgress::with_draw_target(if hidden { ProgressDrawTarget::hidden() } else { ProgressDrawTarget::stderr() });
+        let multi = MultiProgress::with_draw_target(if hidden {
+            ProgressDrawTarget::hidden()
+        } else {
+            ProgressDrawTarget::stderr()
+        });
         let overall = multi.add(ProgressBar::new(cases as u64));
-        overall.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} cases  {elapsed_precise} (eta {eta})").unwrap_or_else(|_| ProgressStyle::default_bar()));
+        overall.set_style(
+            ProgressStyle::with_template("{bar:30} {pos}/{len} cases  {elapsed_precise} (eta {eta})")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
         Progress { multi, overall, hidden }
     }
 
@@ -32,7 +39,11 @@ impl Progress {
     /// Records a finished case: on the bars, or as one log line when they are hidden.
     pub fn done(&self, id: &str, status: &str, wall: f64) {
         self.overall.inc(1);
-        let line = format!("[{}/{}] {id}: {status} ({wall:.1} s)", self.overall.position(), self.overall.length().unwrap_or(0));
+        let line = format!(
+            "[{}/{}] {id}: {status} ({wall:.1} s)",
+            self.overall.position(),
+            self.overall.length().unwrap_or(0)
+        );
         if self.hidden {
             eprintln!("{line}");
         } else {

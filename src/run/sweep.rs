@@ -21,7 +21,10 @@ pub struct Case {
 fn set_path(v: &mut Value, path: &str, new: Value) -> Result<(), String> {
     let mut cur = v;
     for key in path.split('.') {
-        cur = cur.as_object_mut().and_then(|o| o.get_mut(key)).ok_or_else(|| format!("`{path}` is not a setting of the case config (no `{key}` there)"))?;
+        cur = cur
+            .as_object_mut()
+            .and_then(|o| o.get_mut(key))
+            .ok_or_else(|| format!("`{path}` is not a setting of the case config (no `{key}` there)"))?;
     }
     *cur = new;
     Ok(())
@@ -33,15 +36,28 @@ pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigErr
     let axes = base.sweep.clone().unwrap_or_default().axes;
     let mut plain = base.clone();
     plain.sweep = None;
-    let base_value = serde_json::to_value(&plain).map_err(|e| ConfigError::Io { file: origin.into(), message: e.to_string() })?;
-    let value_err = |field: String, message: String| ConfigError::Value { file: origin.into(), field, message };
+    let base_value = serde_json::to_value(&plain).map_err(|e| ConfigError::Io {
+        file: origin.into(),
+        message: e.to_string(),
+    })?;
+    let value_err = |field: String, message: String| ConfigError::Value {
+        file: origin.into(),
+        field,
+        message,
+    };
     for (a, axis) in axes.iter().enumerate() {
         if axis.values.is_empty() {
-            return Err(value_err(format!("sweep.axes[{a}].values"), "is empty; give at least one value".into()));
+            return Err(value_err(
+                format!("sweep.axes[{a}].values"),
+                "is empty; give at least one value".into(),
+            ));
         }
         for (i, v) in axis.values.iter().enumerate() {
             if v.label.is_empty() || !v.label.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '.') {
-                return Err(value_err(format!("sweep.axes[{a}].values[{i}].label"), format!("`{}`: use letters, digits, `-` and `.` only", v.label)));
+                return Err(value_err(
+                    format!("sweep.axes[{a}].values[{i}].label"),
+                    format!("`{}`: use letters, digits, `-` and `.` only", v.label),
+                ));
             }
         }
     }
@@ -64,11 +80,23 @@ pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigErr
             }
             params.push((axis.name.clone(), value.label.clone()));
         }
-        let field = || format!("sweep case {}", params.iter().map(|(a, l)| format!("{a}={l}")).collect::<Vec<_>>().join(", "));
+        let field = || {
+            format!(
+                "sweep case {}",
+                params.iter().map(|(a, l)| format!("{a}={l}")).collect::<Vec<_>>().join(", ")
+            )
+        };
         let config: CaseConfig = serde_json::from_value(v).map_err(|e| value_err(field(), e.to_string()))?;
         config.validate().map_err(|(f, m)| value_err(format!("{f} (in {})", field()), m))?;
-        let id = if params.is_empty() { config.name.clone() } else { params.iter().map(|(a, l)| format!("{a}-{l}")).collect::<Vec<_>>().join("_") };
-        let yaml = serde_saphyr::to_string(&config).map_err(|e| ConfigError::Io { file: origin.into(), message: e.to_string() })?;
+        let id = if params.is_empty() {
+            config.name.clone()
+        } else {
+            params.iter().map(|(a, l)| format!("{a}-{l}")).collect::<Vec<_>>().join("_")
+        };
+        let yaml = serde_saphyr::to_string(&config).map_err(|e| ConfigError::Io {
+            file: origin.into(),
+            message: e.to_string(),
+        })?;
         cases.push(Case { id, params, config, yaml });
     }
     Ok((base.name, cases))
@@ -116,7 +144,10 @@ fn figures(o: &CaseOutcome) -> Vec<String> {
 /// `summary.json` (the same outcomes with full stage summaries), each written to a
 /// temporary name and renamed so a reader never sees half a table.
 pub fn write_summaries(dir: &Path, outcomes: &[CaseOutcome]) -> std::io::Result<()> {
-    let axes: Vec<&str> = outcomes.first().map(|o| o.params.iter().map(|(a, _)| a.as_str()).collect()).unwrap_or_default();
+    let axes: Vec<&str> = outcomes
+        .first()
+        .map(|o| o.params.iter().map(|(a, _)| a.as_str()).collect())
+        .unwrap_or_default();
     let mut csv = String::from("case_id");
     for a in axes.iter().copied().chain(COLUMNS) {
         csv.push(',');
@@ -124,8 +155,16 @@ pub fn write_summaries(dir: &Path, outcomes: &[CaseOutcome]) -> std::io::Result<
     }
     csv.push('\n');
     for o in outcomes {
-        let row: Vec<String> = std::iter::once(o.id.clone()).chain(o.params.iter().map(|(_, l)| l.clone())).chain(figures(o)).collect();
-        csv.push_str(&row.iter().map(|c| if c.contains(',') { format!("\"{c}\"") } else { c.clone() }).collect::<Vec<_>>().join(","));
+        let row: Vec<String> = std::iter::once(o.id.clone())
+            .chain(o.params.iter().map(|(_, l)| l.clone()))
+            .chain(figures(o))
+            .collect();
+        csv.push_str(
+            &row.iter()
+                .map(|c| if c.contains(',') { format!("\"{c}\"") } else { c.clone() })
+                .collect::<Vec<_>>()
+                .join(","),
+        );
         csv.push('\n');
     }
     let write = |name: &str, text: &str| -> std::io::Result<()> {
@@ -134,5 +173,8 @@ pub fn write_summaries(dir: &Path, outcomes: &[CaseOutcome]) -> std::io::Result<
         std::fs::rename(tmp, dir.join(name))
     };
     write("summary.csv", &csv)?;
-    write("summary.json", &serde_json::to_string_pretty(outcomes).map_err(std::io::Error::other)?)
+    write(
+        "summary.json",
+        &serde_json::to_string_pretty(outcomes).map_err(std::io::Error::other)?,
+    )
 }

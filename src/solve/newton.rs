@@ -22,7 +22,12 @@ pub struct NewtonSettings {
 
 impl Default for NewtonSettings {
     fn default() -> Self {
-        NewtonSettings { max_iterations: 50, force_tolerance: 1e-10, displacement_tolerance: 1e-10, max_step: 0.05 }
+        NewtonSettings {
+            max_iterations: 50,
+            force_tolerance: 1e-10,
+            displacement_tolerance: 1e-10,
+            max_step: 0.05,
+        }
     }
 }
 
@@ -50,7 +55,12 @@ pub struct NewtonReport {
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SolveError {
     #[error("Newton did not converge in {iterations} iterations: residual {residual:.3e} N (tolerance {tolerance:.3e} N), last increment {increment:.3e} m")]
-    NotConverged { iterations: usize, residual: f64, tolerance: f64, increment: f64 },
+    NotConverged {
+        iterations: usize,
+        residual: f64,
+        tolerance: f64,
+        increment: f64,
+    },
     #[error("residual became non-finite at iteration {iteration} (diverged)")]
     NonFinite { iteration: usize },
     #[error("singular tangent stiffness at {dof} (pivot ratio {ratio:.1e}): a mechanism or instability there")]
@@ -88,7 +98,12 @@ pub fn newton(
             return Ok(report);
         }
         if iteration == settings.max_iterations {
-            return Err(SolveError::NotConverged { iterations: iteration, residual: res, tolerance, increment });
+            return Err(SolveError::NotConverged {
+                iterations: iteration,
+                residual: res,
+                tolerance,
+                increment,
+            });
         }
         solve_dense(&k, &mut r).map_err(|LinearError::Singular { dof, ratio }| SolveError::Singular { dof: label(dof), ratio })?;
         increment = r.iter().fold(0.0_f64, |m, v| m.max(v.abs()));

@@ -62,9 +62,10 @@ pub fn modes(k: &Mat<f64>, mass: &[f64], dofs: &DofMap, model: &Model) -> Result
     let inv_sqrt: Vec<f64> = mass.iter().map(|m| 1.0 / m.sqrt()).collect();
     let n = mass.len();
     let c = Mat::from_fn(n, n, |i, j| k[(i, j)] * inv_sqrt[i] * inv_sqrt[j]);
-    let evd = c
-        .self_adjoint_eigen(Side::Lower)
-        .map_err(|e| Error::Stage { stage: "eigen", reason: format!("eigen solver failed: {e:?}") })?;
+    let evd = c.self_adjoint_eigen(Side::Lower).map_err(|e| Error::Stage {
+        stage: "eigen",
+        reason: format!("eigen solver failed: {e:?}"),
+    })?;
     let omega2: Vec<f64> = (0..n).map(|i| evd.S()[i]).collect();
     let y = evd.U();
     let shapes = Mat::from_fn(n, n, |i, j| y[(i, j)] * inv_sqrt[i]);
@@ -74,10 +75,13 @@ pub fn modes(k: &Mat<f64>, mass: &[f64], dofs: &DofMap, model: &Model) -> Result
 /// Stability of an equilibrium: the lowest eigenvalue of K_T on the free DOFs and the DOF
 /// its eigenvector moves most. K_T positive definite ⇔ stable.
 pub fn lowest_stiffness(k: &Mat<f64>, dofs: &DofMap, model: &Model) -> Result<(f64, String)> {
-    let evd = k
-        .self_adjoint_eigen(Side::Lower)
-        .map_err(|e| Error::Stage { stage: "stability", reason: format!("eigen solver failed: {e:?}") })?;
+    let evd = k.self_adjoint_eigen(Side::Lower).map_err(|e| Error::Stage {
+        stage: "stability",
+        reason: format!("eigen solver failed: {e:?}"),
+    })?;
     let u = evd.U();
-    let i = (0..k.nrows()).max_by(|&a, &b| u[(a, 0)].abs().total_cmp(&u[(b, 0)].abs())).unwrap_or(0);
+    let i = (0..k.nrows())
+        .max_by(|&a, &b| u[(a, 0)].abs().total_cmp(&u[(b, 0)].abs()))
+        .unwrap_or(0);
     Ok((evd.S()[0], dofs.label(model, i)))
 }

@@ -40,7 +40,9 @@ pub struct FoldSummary {
 }
 
 fn height(x: &[Vector3<f64>]) -> f64 {
-    let (lo, hi) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
     hi - lo
 }
 
@@ -53,7 +55,14 @@ struct FoldState<'a> {
 }
 
 impl Folding {
-    pub fn run(&self, model: &Model, elements: &Elements, x0: Vec<Vector3<f64>>, prescribed: &Prescribed, recorder: &mut dyn Recorder) -> Result<FoldSummary> {
+    pub fn run(
+        &self,
+        model: &Model,
+        elements: &Elements,
+        x0: Vec<Vector3<f64>>,
+        prescribed: &Prescribed,
+        recorder: &mut dyn Recorder,
+    ) -> Result<FoldSummary> {
         let mut mask = vec![[false; 3]; model.node_count()];
         for &(n, a, _, _) in &prescribed.dofs {
             mask[n][a] = true;
@@ -62,25 +71,57 @@ impl Folding {
         let h0 = height(&x0);
         let asm = Assembly::new(model, elements, &dofs, x0);
         let u = asm.free_coordinates();
-        let mut st = FoldState { problem: StaticEquilibrium { asm, load: vec![0.0; dofs.len()] }, u, fraction: 0.0, work: 0.0 };
+        let mut st = FoldState {
+            problem: StaticEquilibrium {
+                asm,
+                load: vec![0.0; dofs.len()],
+            },
+            u,
+            fraction: 0.0,
+            work: 0.0,
+        };
         let strain0 = elements.strain_energy(model, &st.problem.asm.x);
-        let rec = |e: Box<dyn std::error::Error + Send + Sync>| Error::Stage { stage: "folding", reason: format!("recording failed: {e}") };
+        let rec = |e: Box<dyn std::error::Error + Send + Sync>| Error::Stage {
+            stage: "folding",
+            reason: format!("recording failed: {e}"),
+        };
         let record = |st: &FoldState, step: usize, recorder: &mut dyn Recorder| -> Result<()> {
             let asm = &st.problem.asm;
             let forces: Vec<f64> = asm.states.iter().map(|s| s.force).collect();
             let lengths: Vec<f64> = asm.states.iter().map(|s| s.length).collect();
-            let energy = Energy { kinetic: 0.0, strain: elements.strain_energy(model, &asm.x) - strain0, damping: 0.0, external: st.work };
-            recorder.frame(&Frame { step, time: st.fraction, positions: &asm.x, velocities: None, forces: &forces, lengths: &lengths, energy }).map_err(rec)
+            let energy = Energy {
+                kinetic: 0.0,
+                strain: elements.strain_energy(model, &asm.x) - strain0,
+                damping: 0.0,
+                external: st.work,
+            };
+            recorder
+                .frame(&Frame {
+                    step,
+                    time: st.fraction,
+                    positions: &asm.x,
+                    velocities: None,
+                    forces: &forces,
+                    lengths: &lengths,
+                    energy,
+                })
+                .map_err(rec)
         };
         recorder.begin_stage(Stage::Folding).map_err(rec)?;
         record(&st, 0, recorder)?;
-        let mut summary = FoldSummary { steps: self.steps, ..Default::default() };
+        let mut summary = FoldSummary {
+            steps: self.steps,
+            ..Default::default()
+        };
         let label = |d: usize| dofs.label(model, d);
         for step in 1..=self.steps {
             let target = step as f64 / self.steps as f64;
-            let (iterations, cut) = self
-                .reach(&mut st, target, 0, prescribed, &label)
-                .map_err(|source| Error::Solve { stage: "folding", step: Some(step), time: None, source })?;
+            let (iterations, cut) = self.reach(&mut st, target, 0, prescribed, &label).map_err(|source| Error::Solve {
+                stage: "folding",
+                step: Some(step),
+                time: None,
+                source,
+            })?;
             summary.newton_iterations += iterations;
             summary.cut_steps += usize::from(cut);
             record(&st, step, recorder)?;
@@ -93,11 +134,22 @@ impl Folding {
 
     /// Moves the prescribed directions to `target` fraction and solves; on failure
     /// restores the state and tries two half-increments. Returns (iterations, was cut).
-    fn reach(&self, st: &mut FoldState, target: f64, depth: u32, prescribed: &Prescribed, label: &dyn Fn(usize) -> String) -> Result<(usize, bool), SolveError> {
+    fn reach(
+        &self,
+        st: &mut FoldState,
+        target: f64,
+        depth: u32,
+        prescribed: &Prescribed,
+        label: &dyn Fn(usize) -> String,
+    ) -> Result<(usize, bool), SolveError> {
         let (u_old, f_old) = (st.u.clone(), st.fraction);
         let x_old = st.problem.asm.x.clone();
         let reaction = |asm: &Assembly, n: usize, a: usize| asm.p[3 * n + a];
-        let before: Vec<f64> = prescribed.dofs.iter().map(|&(n, a, _, _)| reaction(&st.problem.asm, n, a)).collect();
+        let before: Vec<f64> = prescribed
+            .dofs
+            .iter()
+            .map(|&(n, a, _, _)| reaction(&st.problem.asm, n, a))
+            .collect();
         for &(n, a, from, to) in &prescribed.dofs {
             st.problem.asm.x[n][a] = from + target * (to - from);
         }

@@ -24,9 +24,16 @@ pub fn form_find(model: &Model, elements: &Elements, settings: &NewtonSettings) 
     let dofs = DofMap::new(model, &[]);
     let asm = Assembly::new(model, elements, &dofs, model.positions());
     let mut u = asm.free_coordinates();
-    let mut problem = StaticEquilibrium { asm, load: vec![0.0; dofs.len()] };
-    let report = newton(&mut problem, &mut u, settings, model.size(), &|d| dofs.label(model, d))
-        .map_err(|source| Error::Solve { stage: "form-finding", step: None, time: None, source })?;
+    let mut problem = StaticEquilibrium {
+        asm,
+        load: vec![0.0; dofs.len()],
+    };
+    let report = newton(&mut problem, &mut u, settings, model.size(), &|d| dofs.label(model, d)).map_err(|source| Error::Solve {
+        stage: "form-finding",
+        step: None,
+        time: None,
+        source,
+    })?;
     problem.asm.set_free(&u);
     let asm = problem.asm;
     let max_reaction = (0..model.node_count() * 3)

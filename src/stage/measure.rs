@@ -62,7 +62,11 @@ impl Default for MeasureSpec {
 const STAGE: &str = "form-finding";
 
 fn group_of(model: &Model, m: usize) -> &str {
-    model.members[m].groups.first().map(String::as_str).unwrap_or(model.members[m].id.as_str())
+    model.members[m]
+        .groups
+        .first()
+        .map(String::as_str)
+        .unwrap_or(model.members[m].id.as_str())
 }
 
 impl MeasureSpec {
@@ -77,11 +81,17 @@ impl MeasureSpec {
             match mem.kind {
                 MemberKind::Strut => {
                     let l0 = self.strut_rest_length.unwrap_or_else(|| len(m));
-                    laws.push(Arc::new(MeasurePotential { c: self.strut_ea / l0, n: self.strut_n }));
+                    laws.push(Arc::new(MeasurePotential {
+                        c: self.strut_ea / l0,
+                        n: self.strut_n,
+                    }));
                     rest.push(l0);
                 }
                 MemberKind::Cable => {
-                    laws.push(Arc::new(MeasurePotential { c: cable_c[group_of(model, m)], n: self.cable_n }));
+                    laws.push(Arc::new(MeasurePotential {
+                        c: cable_c[group_of(model, m)],
+                        n: self.cable_n,
+                    }));
                     rest.push(0.0);
                 }
             }

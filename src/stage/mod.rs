@@ -6,8 +6,8 @@ pub mod eigen;
 pub mod fold;
 pub mod formfind;
 pub mod measure;
-pub mod substitute;
 mod statics;
+pub mod substitute;
 pub mod transient;
 
 pub use statics::StaticEquilibrium;

@@ -21,7 +21,9 @@ use std::sync::Arc;
 /// free DOFs, r the out-of-balance), a small normal-equations solve (one unknown per strut).
 pub fn balanced_forces(model: &Model, positions: &[Vector3<f64>], forces: &[f64]) -> Vec<f64> {
     let dofs = DofMap::new(model, &[]);
-    let struts: Vec<usize> = (0..model.members.len()).filter(|&m| model.members[m].kind == MemberKind::Strut).collect();
+    let struts: Vec<usize> = (0..model.members.len())
+        .filter(|&m| model.members[m].kind == MemberKind::Strut)
+        .collect();
     if struts.is_empty() {
         return forces.to_vec();
     }
@@ -75,8 +77,10 @@ pub fn substitute(
     let mut rest = Vec::with_capacity(model.members.len());
     for (m, mem) in model.members.iter().enumerate() {
         let l = (positions[mem.nodes[1]] - positions[mem.nodes[0]]).norm();
-        let l0 = rest_length(laws[m].as_ref(), l, scale * forces[m])
-            .map_err(|reason| Error::Substitution { member: mem.id.clone(), reason })?;
+        let l0 = rest_length(laws[m].as_ref(), l, scale * forces[m]).map_err(|reason| Error::Substitution {
+            member: mem.id.clone(),
+            reason,
+        })?;
         rest.push(l0);
     }
     let elements = Elements { laws, rest };
@@ -84,7 +88,11 @@ pub fn substitute(
     let asm = Assembly::new(model, &elements, &dofs, positions.to_vec());
     let residual = asm.max_free_residual();
     let max_force = asm.states.iter().map(|s| s.force.abs()).fold(0.0, f64::max);
-    Ok(Substituted { elements, residual, max_force })
+    Ok(Substituted {
+        elements,
+        residual,
+        max_force,
+    })
 }
 
 /// Solves N(l, l0) = target for l0 by Newton safeguarded with a bracket. Every law here

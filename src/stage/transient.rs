@@ -55,7 +55,14 @@ fn expand(dofs: &DofMap, free: &[f64], n_nodes: usize) -> Vec<Vector3<f64>> {
 
 impl Transient<'_> {
     /// Runs from positions `x0` at rest.
-    pub fn run(&self, model: &Model, elements: &Elements, x0: Vec<Vector3<f64>>, node_mass: &[f64], recorder: &mut dyn Recorder) -> Result<TransientSummary> {
+    pub fn run(
+        &self,
+        model: &Model,
+        elements: &Elements,
+        x0: Vec<Vector3<f64>>,
+        node_mass: &[f64],
+        recorder: &mut dyn Recorder,
+    ) -> Result<TransientSummary> {
         let stage_name = self.stage.name();
         let dofs = DofMap::new(model, &[]);
         let load_free = |t: f64, f: &mut [f64]| {
@@ -74,8 +81,14 @@ impl Transient<'_> {
         let mut nm = Newmark::new(asm, mass, vec![0.0; n], f0, self.params, self.rayleigh, self.tangent);
         let steps = (self.params.duration / self.params.dt).round() as usize;
         let load_end = self.load.map_or(0.0, |l| l.duration);
-        let mut summary = TransientSummary { steps, ..Default::default() };
-        let rec = |e: Box<dyn std::error::Error + Send + Sync>| Error::Stage { stage: stage_name, reason: format!("recording failed: {e}") };
+        let mut summary = TransientSummary {
+            steps,
+            ..Default::default()
+        };
+        let rec = |e: Box<dyn std::error::Error + Send + Sync>| Error::Stage {
+            stage: stage_name,
+            reason: format!("recording failed: {e}"),
+        };
         recorder.begin_stage(self.stage).map_err(rec)?;
         let label = |d: usize| dofs.label(model, d);
         let record = |nm: &Newmark, step: usize, recorder: &mut dyn Recorder| -> Result<()> {
@@ -83,7 +96,15 @@ impl Transient<'_> {
             let forces: Vec<f64> = nm.asm.states.iter().map(|s| s.force).collect();
             let lengths: Vec<f64> = nm.asm.states.iter().map(|s| s.length).collect();
             recorder
-                .frame(&Frame { step, time: nm.time, positions: &nm.asm.x, velocities: Some(&velocities), forces: &forces, lengths: &lengths, energy: nm.energy })
+                .frame(&Frame {
+                    step,
+                    time: nm.time,
+                    positions: &nm.asm.x,
+                    velocities: Some(&velocities),
+                    forces: &forces,
+                    lengths: &lengths,
+                    energy: nm.energy,
+                })
                 .map_err(rec)
         };
         record(&nm, 0, recorder)?;
@@ -91,7 +112,12 @@ impl Transient<'_> {
         for step in 1..=steps {
             let report = nm
                 .advance(self.params.dt, &self.newton, &load_free, &label)
-                .map_err(|source| Error::Solve { stage: stage_name, step: Some(step), time: Some(step as f64 * self.params.dt), source })?;
+                .map_err(|source| Error::Solve {
+                    stage: stage_name,
+                    step: Some(step),
+                    time: Some(step as f64 * self.params.dt),
+                    source,
+                })?;
             // Re-anchor time to the step grid so that long runs do not drift.
             nm.time = step as f64 * self.params.dt;
             summary.newton_iterations += report.iterations;

@@ -20,7 +20,14 @@ pub struct Assembly<'a> {
 
 impl<'a> Assembly<'a> {
     pub fn new(model: &'a Model, elements: &'a Elements, dofs: &'a DofMap, x: Vec<Vector3<f64>>) -> Self {
-        let mut a = Assembly { model, elements, dofs, x, states: Vec::new(), p: vec![0.0; 3 * model.node_count()] };
+        let mut a = Assembly {
+            model,
+            elements,
+            dofs,
+            x,
+            states: Vec::new(),
+            p: vec![0.0; 3 * model.node_count()],
+        };
         a.update();
         a
     }
@@ -68,7 +75,10 @@ impl<'a> Assembly<'a> {
         let (force, stiff) = self.states.iter().fold((applied, 0.0_f64), |(f, s), m| {
             (f.max(m.force.abs()), s.max(m.stiffness.abs() * m.length + m.force.abs()))
         });
-        Scale { force, roundoff: 64.0 * f64::EPSILON * stiff }
+        Scale {
+            force,
+            roundoff: 64.0 * f64::EPSILON * stiff,
+        }
     }
 
     /// Largest |internal force| on the free DOFs: the out-of-balance of a self-stressed

@@ -70,7 +70,12 @@ pub fn member_states(model: &Model, elements: &Elements, x: &[Vector3<f64>], sta
         let d = x[mem.nodes[1]] - x[mem.nodes[0]];
         let length = d.norm();
         let e = elements.laws[m].eval(length, elements.rest[m]);
-        MemberState { length, dir: d / length, force: e.force, stiffness: e.stiffness }
+        MemberState {
+            length,
+            dir: d / length,
+            force: e.force,
+            stiffness: e.stiffness,
+        }
     }));
 }
 
@@ -101,7 +106,9 @@ pub fn assemble_tangent(model: &Model, states: &[MemberState], dofs: &DofMap, fa
         let [a, b] = mem.nodes;
         for (na, nb, sign) in [(a, a, 1.0), (b, b, 1.0), (a, b, -1.0), (b, a, -1.0)] {
             for r in 0..3 {
-                let Some(row) = dofs.free(na, r) else { continue };
+                let Some(row) = dofs.free(na, r) else {
+                    continue;
+                };
                 for c in 0..3 {
                     if let Some(col) = dofs.free(nb, c) {
                         sink.add(row, col, sign * k[(r, c)]);
