@@ -36,7 +36,9 @@ const STATUS_LEN: usize = 512;
 const CHUNK_BYTES: usize = 1 << 20;
 /// Most steps in one chunk (and so between two SWMR flushes).
 const CHUNK_STEPS: usize = 256;
-const GZIP_LEVEL: u8 = 4;
+/// gzip level: node positions of a moving structure compress about 1.5× at any level, so
+/// the fastest is used (level 4 made the paper case's file only 2 % smaller).
+const GZIP_LEVEL: u8 = 1;
 
 // The high-level dimension-scale API (libhdf5_hl, linked by hdf5-sys's `hl` feature), which
 // neither hdf5-metno nor its -sys crate binds.
@@ -48,7 +50,7 @@ extern "C" {
 /// Streams a case to HDF5.
 ///
 /// A killed process never leaves a file that reads as complete: the root attribute `status`
-/// is created as "running" (and flushed) before anything else is written, and only
+/// is created as "running" (and flushed) before any result is written, and only
 /// [`Recorder::finish`] overwrites it, with "complete" or "failed: <reason>". A recorder
 /// dropped without `finish` (an unwinding panic) writes "failed: recorder dropped before
 /// finish". After `kill -9` the status stays "running" and the file keeps every step flushed
@@ -106,7 +108,9 @@ impl Open {
         while !status.is_char_boundary(end) {
             end -= 1;
         }
-        self.file.attr("status")?.write_scalar(&status[..end].parse::<FixedUnicode<STATUS_LEN>>()?)?;
+        self.file
+            .attr("status")?
+            .write_scalar(&status[..end].parse::<FixedUnicode<STATUS_LEN>>()?)?;
         Ok(self.file.flush()?)
     }
 
@@ -140,7 +144,7 @@ impl Recorder for Hdf5Recorder {
         let model = record.model;
         open.node_ids = model.nodes.iter().map(|n| n.id.clone()).collect();
         open.member_ids = model.members.iter().map(|m| m.id.clone()).collect();
-        let g = Dims::new(open.static_group("model")?);
+        let mut g = Dims::new(open.static_group("model")?);
         g.labels("node", &open.node_ids, "node id")?;
         g.labels("member", &open.member_ids, "member id")?;
         g.labels("xyz", &AXES, "coordinate axis")?;
@@ -148,7 +152,13 @@ impl Recorder for Hdf5Recorder {
         let xyz: Vec<f64> = model.nodes.iter().flat_map(|n| n.xyz.iter().copied()).collect();
         g.var("initial_position", &["node", "xyz"], &xyz, "m", "initial node position")?;
         let ends: Vec<i64> = model.members.iter().flat_map(|m| m.nodes.map(|n| n as i64)).collect();
-        g.var("member_nodes", &["member", "end"], &ends, "1", "0-based index of the member's end nodes")?;
+        g.var(
+            "member_nodes",
+            &["member", "end"],
+            &ends,
+            "1",
+            "0-based index of the member's end nodes",
+        )?;
         let kinds: Vec<&str> = model.members.iter().map(|m| m.kind.as_str()).collect();
         g.var("member_kind", &["member"], &varlen(&kinds)?, "1", "member kind (strut or cable)")?;
         g.var("rest_length", &["member"], record.rest_lengths, "m", "real-material rest length")?;
@@ -162,11 +172,23 @@ impl Recorder for Hdf5Recorder {
         let node_groups: Vec<String> = node_groups.iter().map(|g| g.join(",")).collect();
         g.var("node_group", &["node"], &varlen(&node_groups)?, "1", "node groups, comma-separated")?;
         let member_groups: Vec<String> = model.members.iter().map(|m| m.groups.join(",")).collect();
-        g.var("member_group", &["member"], &varlen(&member_groups)?, "1", "member groups, comma-separated")?;
+        g.var(
+            "member_group",
+            &["member"],
+            &varlen(&member_groups)?,
+            "1",
+            "member groups, comma-separated",
+        )?;
 
         let chunk = (CHUNK_BYTES / (24 * model.node_count().max(1))).clamp(1, CHUNK_STEPS);
         for stage in [Stage::FreeVibration, Stage::Folding, Stage::Deployment] {
-            let series = Series::create(open.file.create_group(stage.name())?, stage, &open.node_ids, &open.member_ids, chunk)?;
+            let series = Series::create(
+                open.file.create_group(stage.name())?,
+                stage,
+                &open.node_ids,
+                &open.member_ids,
+                chunk,
+            )?;
             open.series.push((stage, series));
         }
         Ok(open.file.flush()?)
@@ -174,22 +196,39 @@ impl Recorder for Hdf5Recorder {
 
     fn formfinding(&mut self, record: &FormFindRecord) -> RecordResult {
         let open = self.open()?;
-        let g = Dims::new(open.static_group("formfinding")?);
+        let mut g = Dims::new(open.static_group("formfinding")?);
         let iterations: Vec<i64> = (0..record.residuals.len() as i64).collect();
         g.coord("iteration", &iterations, "1", "form-finding iteration")?;
         g.labels("node", &open.node_ids, "node id")?;
         g.labels("member", &open.member_ids, "member id")?;
         g.labels("xyz", &AXES, "coordinate axis")?;
-        g.var("residual_norm", &["iteration"], record.residuals, "N", "norm of the unbalanced force")?;
-        g.var("position", &["node", "xyz"], &flat(record.positions), "m", "equilibrium node position")?;
-        g.var("member_force", &["member"], record.forces, "N", "equilibrium member force (tension > 0)")?;
+        g.var(
+            "residual_norm",
+            &["iteration"],
+            record.residuals,
+            "N",
+            "norm of the unbalanced force",
+        )?;
+        g.var(
+            "position",
+            &["node", "xyz"],
+            &flat(record.positions),
+            "m",
+            "equilibrium node position",
+        )?;
+        g.var(
+            "member_force",
+            &["member"],
+            record.forces,
+            "N",
+            "equilibrium member force (tension > 0)",
+        )?;
         Ok(open.file.flush()?)
     }
 
     fn eigen(&mut self, record: &EigenRecord) -> RecordResult {
         let open = self.open()?;
-        let group = open.static_group("eigen")?;
-        let g = Dims::new(group.clone());
+        let mut g = Dims::new(open.static_group("eigen")?);
         let modes: Vec<i64> = (1..=record.omega2.len() as i64).collect();
         g.coord("mode", &modes, "1", "mode number (1-based, ascending frequency)")?;
         g.labels("node", &open.node_ids, "node id")?;
@@ -198,18 +237,34 @@ impl Recorder for Hdf5Recorder {
         let freq: Vec<f64> = record.omega2.iter().map(|w2| w2.max(0.0).sqrt() / std::f64::consts::TAU).collect();
         g.var("frequency", &["mode"], &freq, "Hz", "eigenfrequency")?;
         let shapes: Vec<f64> = record.mode_shapes.iter().flat_map(|s| flat(s)).collect();
-        g.var("mode_shape", &["mode", "node", "xyz"], &shapes, "m kg-1/2", "mass-normalised mode shape")?;
-        group.new_attr::<f64>().create("rayleigh_alpha")?.write_scalar(&record.rayleigh_alpha)?;
-        group.new_attr::<f64>().create("rayleigh_beta")?.write_scalar(&record.rayleigh_beta)?;
+        g.var(
+            "mode_shape",
+            &["mode", "node", "xyz"],
+            &shapes,
+            "m kg-1/2",
+            "mass-normalised mode shape",
+        )?;
+        g.group
+            .new_attr::<f64>()
+            .create("rayleigh_alpha")?
+            .write_scalar(&record.rayleigh_alpha)?;
+        g.group
+            .new_attr::<f64>()
+            .create("rayleigh_beta")?
+            .write_scalar(&record.rayleigh_beta)?;
         let damping_modes: Vec<i64> = record.damping_modes.iter().map(|&m| m as i64).collect();
-        group.new_attr_builder().with_data(&damping_modes).create("damping_modes")?;
-        group.new_attr_builder().with_data(record.damping_ratio).create("damping_ratio")?;
+        g.group.new_attr_builder().with_data(&damping_modes).create("damping_modes")?;
+        g.group.new_attr_builder().with_data(record.damping_ratio).create("damping_ratio")?;
         Ok(open.file.flush()?)
     }
 
     fn begin_stage(&mut self, stage: Stage) -> RecordResult {
         let open = self.open()?;
-        let i = open.series.iter().position(|(s, _)| *s == stage).ok_or_else(|| format!("HDF5: {} is not a time-stepping stage (or model() was not recorded)", stage.name()))?;
+        let i = open
+            .series
+            .iter()
+            .position(|(s, _)| *s == stage)
+            .ok_or_else(|| format!("HDF5: {} is not a time-stepping stage (or model() was not recorded)", stage.name()))?;
         if !open.swmr {
             open.file.start_swmr()?;
             open.swmr = true;
@@ -241,8 +296,8 @@ impl Recorder for Hdf5Recorder {
 
 impl Drop for Hdf5Recorder {
     fn drop(&mut self) {
-        if let Some(open) = &self.open {
-            let _ = open.set_status("failed: recorder dropped before finish");
+        if self.open.is_some() {
+            let _ = self.finish("failed: recorder dropped before finish");
         }
     }
 }
@@ -252,7 +307,6 @@ struct Series {
     /// (dataset, buffered values of its rows not yet written)
     columns: Vec<(Dataset, Vec<f64>)>,
     folding: bool,
-    dynamic: bool,
     written: usize,
     buffered: usize,
     chunk: usize,
@@ -260,27 +314,28 @@ struct Series {
 
 impl Series {
     /// Column order, used by [`Series::push`]: time, [fraction], position, [velocity],
-    /// member_force, member_length, kinetic, strain, damping, external.
+    /// member_force, member_length, kinetic, strain, damping, external. Folding, a static
+    /// stage, has `fraction` and no `velocity`.
     fn create(group: Group, stage: Stage, node_ids: &[String], member_ids: &[String], chunk: usize) -> Result<Self, Error> {
-        let (folding, dynamic) = (stage == Stage::Folding, stage != Stage::Folding);
-        let g = Dims::new(group);
-        let time = if folding {
-            g.streamed("time", &[], chunk, "1", "folding step")?
+        let folding = stage == Stage::Folding;
+        let mut g = Dims::new(group);
+        let (units, long_name) = if folding {
+            ("1", "folding step")
         } else {
-            g.streamed("time", &[], chunk, "s", "simulated time since the stage began")?
+            ("s", "simulated time since the stage began")
         };
-        g.set_scale(&time, "time")?;
-        g.dims.borrow_mut().push(("time".into(), time.clone()));
+        let time = g.streamed("time", &[], chunk, units, long_name)?;
+        g.scale("time", time.clone())?;
         g.labels("node", node_ids, "node id")?;
         g.labels("member", member_ids, "member id")?;
         g.labels("xyz", &AXES, "coordinate axis")?;
         let mut columns = vec![time];
         if folding {
-            columns.push(g.streamed("fraction", &["time"], chunk, "1", "applied fraction of the prescribed displacement")?);
+            columns.push(g.streamed("fraction", &[], chunk, "1", "applied fraction of the prescribed displacement")?);
         }
-        columns.push(g.streamed("position", &["time", "node", "xyz"], chunk, "m", "node position")?);
-        if dynamic {
-            columns.push(g.streamed("velocity", &["time", "node", "xyz"], chunk, "m s-1", "node velocity")?);
+        columns.push(g.streamed("position", &["node", "xyz"], chunk, "m", "node position")?);
+        if !folding {
+            columns.push(g.streamed("velocity", &["node", "xyz"], chunk, "m s-1", "node velocity")?);
         }
         for (name, units, long_name) in [
             ("member_force", "N", "member force (tension > 0)"),
@@ -288,9 +343,13 @@ impl Series {
             ("kinetic_energy", "J", "kinetic energy"),
             ("strain_energy", "J", "strain energy"),
             ("damping_energy", "J", "energy dissipated by damping since the stage began"),
-            ("external_work", "J", "work of external loads and prescribed displacements since the stage began"),
+            (
+                "external_work",
+                "J",
+                "work of external loads and prescribed displacements since the stage began",
+            ),
         ] {
-            let dims: &[&str] = if name.starts_with("member") { &["time", "member"] } else { &["time"] };
+            let dims: &[&str] = if name.starts_with("member") { &["member"] } else { &[] };
             columns.push(g.streamed(name, dims, chunk, units, long_name)?);
         }
         if folding {
@@ -300,7 +359,13 @@ impl Series {
             }
         }
         let columns = columns.into_iter().map(|ds| (ds, Vec::new())).collect();
-        Ok(Series { columns, folding, dynamic, written: 0, buffered: 0, chunk })
+        Ok(Series {
+            columns,
+            folding,
+            written: 0,
+            buffered: 0,
+            chunk,
+        })
     }
 
     /// Buffers a frame; writes the block when it fills a chunk, and then says so (true): a
@@ -314,7 +379,7 @@ impl Series {
             next().push(f.time);
         }
         next().extend(f.positions.iter().flat_map(|p| p.iter().copied()));
-        if self.dynamic {
+        if !self.folding {
             match f.velocities {
                 Some(v) => next().extend(v.iter().flat_map(|p| p.iter().copied())),
                 None => next().extend(std::iter::repeat_n(f64::NAN, 3 * n)),
@@ -352,38 +417,49 @@ impl Series {
 /// Creates datasets in one group and attaches them to the group's dimension scales.
 struct Dims {
     group: Group,
-    dims: std::cell::RefCell<Vec<(String, Dataset)>>,
+    scales: Vec<(String, Dataset)>,
 }
 
 impl Dims {
     fn new(group: Group) -> Self {
-        Dims { group, dims: Default::default() }
+        Dims { group, scales: Vec::new() }
     }
 
     /// A coordinate variable: a 1-D dataset that is the dimension scale of its own name.
-    fn coord<T: H5Type>(&self, name: &str, values: &[T], units: &str, long_name: &str) -> Result<(), Error> {
+    fn coord<T: H5Type>(&mut self, name: &str, values: &[T], units: &str, long_name: &str) -> Result<(), Error> {
         let ds = self.group.new_dataset_builder().with_data(values).create(name)?;
         describe(&ds, units, long_name)?;
-        self.set_scale(&ds, name)?;
-        self.dims.borrow_mut().push((name.into(), ds));
-        Ok(())
+        self.scale(name, ds)
     }
 
-    fn labels<S: AsRef<str>>(&self, name: &str, labels: &[S], long_name: &str) -> Result<(), Error> {
+    fn labels<S: AsRef<str>>(&mut self, name: &str, labels: &[S], long_name: &str) -> Result<(), Error> {
         self.coord(name, &varlen(labels)?, "1", long_name)
     }
 
-    fn set_scale(&self, ds: &Dataset, name: &str) -> Result<(), Error> {
-        let name = CString::new(name)?;
-        let _lock = hdf5_sys::LOCK.lock();
-        // SAFETY: `ds` is an open dataset and `name` outlives the call.
-        check(unsafe { H5DSset_scale(ds.id(), name.as_ptr()) }, "H5DSset_scale")
+    /// Makes `ds` the dimension scale `name` of this group.
+    fn scale(&mut self, name: &str, ds: Dataset) -> Result<(), Error> {
+        let c_name = CString::new(name)?;
+        {
+            let _lock = hdf5_sys::LOCK.lock();
+            // SAFETY: `ds` is an open dataset and `c_name` outlives the call.
+            check(unsafe { H5DSset_scale(ds.id(), c_name.as_ptr()) }, "H5DSset_scale")?;
+        }
+        self.scales.push((name.into(), ds));
+        Ok(())
+    }
+
+    fn find(&self, dim: &str) -> Result<&Dataset, Error> {
+        Ok(&self
+            .scales
+            .iter()
+            .find(|(n, _)| n == dim)
+            .ok_or_else(|| format!("HDF5: no dimension {dim}"))?
+            .1)
     }
 
     fn attach(&self, ds: &Dataset, dims: &[&str]) -> Result<(), Error> {
-        let scales = self.dims.borrow();
         for (axis, dim) in dims.iter().enumerate() {
-            let scale = &scales.iter().find(|(n, _)| n == dim).ok_or_else(|| format!("no dimension {dim}"))?.1;
+            let scale = self.find(dim)?;
             let _lock = hdf5_sys::LOCK.lock();
             // SAFETY: both ids are open datasets of the same file.
             check(unsafe { H5DSattach_scale(ds.id(), scale.id(), axis as c_uint) }, "H5DSattach_scale")?;
@@ -391,30 +467,37 @@ impl Dims {
         Ok(())
     }
 
-    fn size(&self, dim: &str) -> Result<usize, Error> {
-        let scales = self.dims.borrow();
-        Ok(scales.iter().find(|(n, _)| n == dim).ok_or_else(|| format!("no dimension {dim}"))?.1.size())
+    fn sizes(&self, dims: &[&str]) -> Result<Vec<usize>, Error> {
+        dims.iter().map(|d| Ok(self.find(d)?.size())).collect()
     }
 
     /// A fixed-size variable written at once; `values` in row-major order over `dims`.
     fn var<T: H5Type>(&self, name: &str, dims: &[&str], values: &[T], units: &str, long_name: &str) -> Result<(), Error> {
-        let shape = dims.iter().map(|d| self.size(d)).collect::<Result<Vec<_>, _>>()?;
-        let ds = self.group.new_dataset::<T>().shape(shape).create(name)?;
+        let ds = self.group.new_dataset::<T>().shape(self.sizes(dims)?).create(name)?;
         ds.write_raw(values)?;
         describe(&ds, units, long_name)?;
         self.attach(&ds, dims)
     }
 
-    /// A variable growing along its first dimension, `time` (or, for `time` itself, none yet
-    /// attached): chunked `chunk` steps deep, shuffle + gzip.
+    /// A variable over (time, `dims`...) growing along time, chunked `chunk` steps deep, with
+    /// shuffle + gzip; attached to the `time` scale once that exists.
     fn streamed(&self, name: &str, dims: &[&str], chunk: usize, units: &str, long_name: &str) -> Result<Dataset, Error> {
-        let tail = dims.iter().skip(1).map(|d| self.size(d)).collect::<Result<Vec<_>, _>>()?;
-        let shape: Vec<hdf5::Extent> = std::iter::once(hdf5::Extent::resizable(0)).chain(tail.iter().map(|&n| n.into())).collect();
+        let tail = self.sizes(dims)?;
+        let shape: Vec<hdf5::Extent> = std::iter::once(hdf5::Extent::resizable(0))
+            .chain(tail.iter().map(|&n| n.into()))
+            .collect();
         let chunk_shape: Vec<usize> = std::iter::once(chunk).chain(tail.iter().map(|&n| n.max(1))).collect();
-        let ds = self.group.new_dataset::<f64>().chunk(chunk_shape).shuffle().deflate(GZIP_LEVEL).shape(shape).create(name)?;
+        let ds = self
+            .group
+            .new_dataset::<f64>()
+            .chunk(chunk_shape)
+            .shuffle()
+            .deflate(GZIP_LEVEL)
+            .shape(shape)
+            .create(name)?;
         describe(&ds, units, long_name)?;
-        if !dims.is_empty() {
-            self.attach(&ds, dims)?;
+        if self.find("time").is_ok() {
+            self.attach(&ds, &[&["time"], dims].concat())?;
         }
         Ok(ds)
     }
@@ -427,7 +510,9 @@ fn append_rows(ds: &Dataset, start: usize, rows: usize, values: &[f64]) -> Resul
     let mut shape = ds.shape();
     shape[0] = start + rows;
     ds.resize(shape.clone())?;
-    let slab: Vec<SliceOrIndex> = std::iter::once(SliceOrIndex::from(start..start + rows)).chain(shape[1..].iter().map(|_| SliceOrIndex::from(..))).collect();
+    let slab: Vec<SliceOrIndex> = std::iter::once(SliceOrIndex::from(start..start + rows))
+        .chain(shape[1..].iter().map(|_| SliceOrIndex::from(..)))
+        .collect();
     let file_space = ds.space()?.select(Hyperslab::from(slab))?;
     shape[0] = rows;
     let mem_space = Dataspace::try_new(shape)?;
@@ -435,7 +520,16 @@ fn append_rows(ds: &Dataset, start: usize, rows: usize, values: &[f64]) -> Resul
     assert_eq!(mem_space.size(), values.len(), "block size");
     let _lock = hdf5_sys::LOCK.lock();
     // SAFETY: `values` holds exactly the elements of `mem_space`, in memory order.
-    let err = unsafe { hdf5_sys::h5d::H5Dwrite(ds.id(), dtype.id(), mem_space.id(), file_space.id(), hdf5_sys::h5p::H5P_DEFAULT, values.as_ptr().cast()) };
+    let err = unsafe {
+        hdf5_sys::h5d::H5Dwrite(
+            ds.id(),
+            dtype.id(),
+            mem_space.id(),
+            file_space.id(),
+            hdf5_sys::h5p::H5P_DEFAULT,
+            values.as_ptr().cast(),
+        )
+    };
     check(err, "H5Dwrite")
 }
 
@@ -452,7 +546,9 @@ fn describe(ds: &Dataset, units: &str, long_name: &str) -> Result<(), Error> {
 }
 
 fn str_attr(loc: &Location, name: &str, value: &str) -> Result<(), Error> {
-    loc.new_attr::<VarLenUnicode>().create(name)?.write_scalar(&value.parse::<VarLenUnicode>()?)?;
+    loc.new_attr::<VarLenUnicode>()
+        .create(name)?
+        .write_scalar(&value.parse::<VarLenUnicode>()?)?;
     Ok(())
 }
 
@@ -478,7 +574,11 @@ impl Stride {
         if every == 0 {
             return Err("output stride `every` must be at least 1".into());
         }
-        Ok(Stride { every, held: OwnedFrame::default(), holding: false })
+        Ok(Stride {
+            every,
+            held: OwnedFrame::default(),
+            holding: false,
+        })
     }
 
     /// Whether to record `frame` now; if not, it is held back.
@@ -560,11 +660,30 @@ pub(super) mod tests {
     pub(in crate::record) fn drive(rec: &mut dyn Recorder, model: &Model, steps: usize) -> RecordResult {
         let (n, m) = (model.node_count(), model.members.len());
         let x0 = model.positions();
-        rec.model(&ModelRecord { model, rest_lengths: &vec![1.0; m], masses: &vec![2.0; n] })?;
-        let forces: Vec<f64> = model.members.iter().map(|mb| if mb.kind == crate::model::MemberKind::Strut { -10.0 } else { 5.0 }).collect();
-        rec.formfinding(&FormFindRecord { residuals: &[1.0, 1e-3, 1e-9], positions: &x0, forces: &forces })?;
+        rec.model(&ModelRecord {
+            model,
+            rest_lengths: &vec![1.0; m],
+            masses: &vec![2.0; n],
+        })?;
+        let forces: Vec<f64> = model
+            .members
+            .iter()
+            .map(|mb| if mb.kind == crate::model::MemberKind::Strut { -10.0 } else { 5.0 })
+            .collect();
+        rec.formfinding(&FormFindRecord {
+            residuals: &[1.0, 1e-3, 1e-9],
+            positions: &x0,
+            forces: &forces,
+        })?;
         let shapes = vec![vec![Vector3::new(0.0, 0.0, 1.0); n]; 4];
-        rec.eigen(&EigenRecord { omega2: &[1.0, 4.0, 9.0, 16.0], mode_shapes: &shapes, rayleigh_alpha: 0.1, rayleigh_beta: 0.01, damping_modes: &[1, 2], damping_ratio: &[0.02, 0.02] })?;
+        rec.eigen(&EigenRecord {
+            omega2: &[1.0, 4.0, 9.0, 16.0],
+            mode_shapes: &shapes,
+            rayleigh_alpha: 0.1,
+            rayleigh_beta: 0.01,
+            damping_modes: &[1, 2],
+            damping_ratio: &[0.02, 0.02],
+        })?;
         for stage in [Stage::FreeVibration, Stage::Folding, Stage::Deployment] {
             rec.begin_stage(stage)?;
             for step in 0..=steps {
@@ -572,10 +691,23 @@ pub(super) mod tests {
                 let positions: Vec<_> = x0.iter().map(|p| p + Vector3::repeat(1e-3 * s)).collect();
                 let velocities = vec![Vector3::repeat(s); n];
                 let time = if stage == Stage::Folding { s / steps as f64 } else { 0.01 * s };
-                let energy = Energy { kinetic: s, strain: 2.0 * s, damping: 3.0 * s, external: 4.0 * s };
+                let energy = Energy {
+                    kinetic: s,
+                    strain: 2.0 * s,
+                    damping: 3.0 * s,
+                    external: 4.0 * s,
+                };
                 let lengths = vec![1.0 + s; m];
                 let velocities = (stage != Stage::Folding).then_some(velocities.as_slice());
-                rec.frame(&Frame { step, time, positions: &positions, velocities, forces: &forces, lengths: &lengths, energy })?;
+                rec.frame(&Frame {
+                    step,
+                    time,
+                    positions: &positions,
+                    velocities,
+                    forces: &forces,
+                    lengths: &lengths,
+                    energy,
+                })?;
             }
             rec.end_stage(stage)?;
         }
@@ -584,12 +716,22 @@ pub(super) mod tests {
 
     fn status(path: &Path) -> String {
         let file = File::open(path).unwrap();
-        file.attr("status").unwrap().read_scalar::<FixedUnicode<STATUS_LEN>>().unwrap().as_str().to_string()
+        file.attr("status")
+            .unwrap()
+            .read_scalar::<FixedUnicode<STATUS_LEN>>()
+            .unwrap()
+            .as_str()
+            .to_string()
     }
 
     #[test]
     fn writes_the_layout_with_stride_and_status() {
-        let model = TowerSpec { struts: 3, stages: 1, ..TowerSpec::paper() }.build();
+        let model = TowerSpec {
+            struts: 3,
+            stages: 1,
+            ..TowerSpec::paper()
+        }
+        .build();
         let path = temp_path("layout.h5");
         let mut rec = Hdf5Recorder::create(&path, "case-7", "a: 1\n", 3).unwrap();
         // Stride 3 over steps 0..=10: the last step is not a multiple of 3.
@@ -599,37 +741,71 @@ pub(super) mod tests {
         assert_eq!(status(&path), "complete");
 
         let file = File::open(&path).unwrap();
-        assert_eq!(file.attr("case_id").unwrap().read_scalar::<VarLenUnicode>().unwrap().as_str(), "case-7");
-        assert_eq!(file.attr("units").unwrap().read_scalar::<VarLenUnicode>().unwrap().as_str(), "SI (m, N, kg, s)");
+        assert_eq!(
+            file.attr("case_id").unwrap().read_scalar::<VarLenUnicode>().unwrap().as_str(),
+            "case-7"
+        );
+        assert_eq!(
+            file.attr("units").unwrap().read_scalar::<VarLenUnicode>().unwrap().as_str(),
+            "SI (m, N, kg, s)"
+        );
         let (n, m) = (6, 12);
         assert_eq!(file.dataset("model/member_nodes").unwrap().shape(), vec![m, 2]);
         assert_eq!(file.dataset("eigen/mode_shape").unwrap().shape(), vec![4, n, 3]);
-        assert_eq!(file.group("eigen").unwrap().attr("damping_modes").unwrap().read_raw::<i64>().unwrap(), vec![1, 2]);
+        assert_eq!(
+            file.group("eigen")
+                .unwrap()
+                .attr("damping_modes")
+                .unwrap()
+                .read_raw::<i64>()
+                .unwrap(),
+            vec![1, 2]
+        );
         // Steps 0, 3, 6, 9 and the last, 10.
         let time = file.dataset("free_vibration/time").unwrap().read_raw::<f64>().unwrap();
         assert_eq!(time, [0.0, 3.0, 6.0, 9.0, 10.0].map(|s| 0.01 * s));
-        assert_eq!(file.dataset("folding/time").unwrap().read_raw::<f64>().unwrap(), vec![0.0, 3.0, 6.0, 9.0, 10.0]);
-        assert_eq!(file.dataset("folding/fraction").unwrap().read_raw::<f64>().unwrap(), vec![0.0, 0.3, 0.6, 0.9, 1.0]);
+        assert_eq!(
+            file.dataset("folding/time").unwrap().read_raw::<f64>().unwrap(),
+            vec![0.0, 3.0, 6.0, 9.0, 10.0]
+        );
+        assert_eq!(
+            file.dataset("folding/fraction").unwrap().read_raw::<f64>().unwrap(),
+            vec![0.0, 0.3, 0.6, 0.9, 1.0]
+        );
         assert_eq!(file.dataset("deployment/position").unwrap().shape(), vec![5, n, 3]);
         assert_eq!(file.dataset("deployment/velocity").unwrap().shape(), vec![5, n, 3]);
         assert!(file.dataset("folding/velocity").is_err());
-        assert_eq!(file.dataset("deployment/kinetic_energy").unwrap().read_raw::<f64>().unwrap(), vec![0.0, 3.0, 6.0, 9.0, 10.0]);
+        assert_eq!(
+            file.dataset("deployment/kinetic_energy").unwrap().read_raw::<f64>().unwrap(),
+            vec![0.0, 3.0, 6.0, 9.0, 10.0]
+        );
         assert_eq!(file.dataset("deployment/member_length").unwrap().shape(), vec![5, m]);
         for group in ["model", "formfinding", "eigen", "free_vibration", "folding", "deployment"] {
             let g = file.group(group).unwrap();
             for name in g.member_names().unwrap() {
                 let ds = g.dataset(&name).unwrap();
                 let attrs = ds.attr_names().unwrap();
-                assert!(attrs.contains(&"units".to_string()) && attrs.contains(&"long_name".to_string()), "{group}/{name}");
+                assert!(
+                    attrs.contains(&"units".to_string()) && attrs.contains(&"long_name".to_string()),
+                    "{group}/{name}"
+                );
                 // A dimension scale (CLASS) or attached to scales (DIMENSION_LIST).
-                assert!(attrs.contains(&"CLASS".to_string()) || attrs.contains(&"DIMENSION_LIST".to_string()), "{group}/{name}: {attrs:?}");
+                assert!(
+                    attrs.contains(&"CLASS".to_string()) || attrs.contains(&"DIMENSION_LIST".to_string()),
+                    "{group}/{name}: {attrs:?}"
+                );
             }
         }
     }
 
     #[test]
     fn streams_in_chunks_and_reports_failure() {
-        let model = TowerSpec { struts: 3, stages: 1, ..TowerSpec::paper() }.build();
+        let model = TowerSpec {
+            struts: 3,
+            stages: 1,
+            ..TowerSpec::paper()
+        }
+        .build();
         let path = temp_path("chunks.h5");
         let mut rec = Hdf5Recorder::create(&path, "c", "", 1).unwrap();
         drive(&mut rec, &model, 600).unwrap();
@@ -639,17 +815,30 @@ pub(super) mod tests {
         let time = file.dataset("free_vibration/time").unwrap();
         assert_eq!(time.shape(), vec![601]);
         assert_eq!(time.chunk(), Some(vec![CHUNK_STEPS]));
-        assert_eq!(file.dataset("free_vibration/strain_energy").unwrap().read_raw::<f64>().unwrap()[600], 1200.0);
+        assert_eq!(
+            file.dataset("free_vibration/strain_energy").unwrap().read_raw::<f64>().unwrap()[600],
+            1200.0
+        );
         let status = status(&path);
         assert!(status.starts_with("failed: é") && status.len() <= STATUS_LEN && status.len() >= STATUS_LEN - 1);
     }
 
     #[test]
     fn dropped_recorder_is_not_complete() {
-        let model = TowerSpec { struts: 3, stages: 1, ..TowerSpec::paper() }.build();
+        let model = TowerSpec {
+            struts: 3,
+            stages: 1,
+            ..TowerSpec::paper()
+        }
+        .build();
         let path = temp_path("dropped.h5");
         let mut rec = Hdf5Recorder::create(&path, "c", "", 1).unwrap();
-        rec.model(&ModelRecord { model: &model, rest_lengths: &[1.0; 12], masses: &[1.0; 6] }).unwrap();
+        rec.model(&ModelRecord {
+            model: &model,
+            rest_lengths: &[1.0; 12],
+            masses: &[1.0; 6],
+        })
+        .unwrap();
         rec.begin_stage(Stage::FreeVibration).unwrap();
         drop(rec);
         assert_eq!(status(&path), "failed: recorder dropped before finish");

@@ -2,9 +2,9 @@
 //! never with a Newton trial (OpenSees' commit-then-record). Each output format is one
 //! implementation of [`Recorder`]; [`Recorders`] fans out to several.
 
+mod fanout;
 pub mod h5;
 pub mod replay;
-mod fanout;
 
 pub use fanout::{file_recorders, Recorders};
 

@@ -49,9 +49,24 @@ const STRUT_WIDTH: f64 = 6.0;
 const CABLE_WIDTH: f64 = 2.0;
 /// A member whose |force| is below this fraction of the step's largest |force| is slack.
 const SLACK_FRACTION: f64 = 1e-6;
-const BROWN: Color = Color { r: 0.55, g: 0.27, b: 0.07, a: 1.0 };
-const RED: Color = Color { r: 0.85, g: 0.10, b: 0.10, a: 1.0 };
-const GREY: Color = Color { r: 0.60, g: 0.60, b: 0.60, a: 1.0 };
+const BROWN: Color = Color {
+    r: 0.55,
+    g: 0.27,
+    b: 0.07,
+    a: 1.0,
+};
+const RED: Color = Color {
+    r: 0.85,
+    g: 0.10,
+    b: 0.10,
+    a: 1.0,
+};
+const GREY: Color = Color {
+    r: 0.60,
+    g: 0.60,
+    b: 0.60,
+    a: 1.0,
+};
 
 /// Messages of our own topics. The derive names each schema `<lowercase>.<Name>`.
 mod msg {
@@ -110,7 +125,11 @@ impl McapRecorder {
     /// Creates (truncates) `path`. `every` is the output stride, as for HDF5: a time-stepping
     /// stage records the steps with `step % every == 0` and always its last step.
     pub fn create(path: &Path, case_id: &str, every: usize) -> Result<Self, Error> {
-        let options = mcap::WriteOptions::new().compression(Some(mcap::Compression::Zstd));
+        // zstd level 1: level 3 (the default) spent 5 % of the paper case in compression for
+        // files 2 % smaller.
+        let options = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_level(1);
         let mut writer = options.create(BufWriter::new(File::create(path)?))?;
         let channels = Channels {
             scene: channel::<SceneUpdate>(&mut writer, "/tsim/scene")?,
@@ -118,16 +137,35 @@ impl McapRecorder {
             members: channel::<msg::MemberForces>(&mut writer, "/tsim/members")?,
             stage: channel::<msg::StageStart>(&mut writer, "/tsim/stage")?,
         };
-        let case = BTreeMap::from([("case_id".to_string(), case_id.to_string()), ("tsim_version".to_string(), env!("CARGO_PKG_VERSION").to_string())]);
-        writer.write_metadata(&mcap::records::Metadata { name: "case".into(), metadata: case })?;
-        Ok(McapRecorder { writer: Some(writer), channels, stride: Stride::new(every)?, clock: Clock::default(), members: Vec::new(), stage: None, buf: Vec::new() })
+        let case = BTreeMap::from([
+            ("case_id".to_string(), case_id.to_string()),
+            ("tsim_version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+        ]);
+        writer.write_metadata(&mcap::records::Metadata {
+            name: "case".into(),
+            metadata: case,
+        })?;
+        Ok(McapRecorder {
+            writer: Some(writer),
+            channels,
+            stride: Stride::new(every)?,
+            clock: Clock::default(),
+            members: Vec::new(),
+            stage: None,
+            buf: Vec::new(),
+        })
     }
 
     fn log<T: Encode>(&mut self, channel: u16, log_time: u64, msg: &T) -> Result<(), Error> {
         let writer = self.writer.as_mut().ok_or("MCAP recorder already finished")?;
         self.buf.clear();
         msg.encode(&mut self.buf).map_err(|e| e.to_string())?;
-        let header = mcap::records::MessageHeader { channel_id: channel, sequence: 0, log_time, publish_time: log_time };
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: 0,
+            log_time,
+            publish_time: log_time,
+        };
         Ok(writer.write_to_known_channel(&header, &self.buf)?)
     }
 
@@ -137,15 +175,44 @@ impl McapRecorder {
     }
 
     /// Scene and member forces of one state, and its energy when there is one.
-    fn log_state(&mut self, stage: Stage, step: usize, ns: u64, positions: &[Vector3<f64>], forces: &[f64], energy: Option<Energy>) -> Result<(), Error> {
+    fn log_state(
+        &mut self,
+        stage: Stage,
+        step: usize,
+        ns: u64,
+        positions: &[Vector3<f64>],
+        forces: &[f64],
+        energy: Option<Energy>,
+    ) -> Result<(), Error> {
         let scene = self.scene(ns, positions, forces);
         self.log(self.channels.scene, ns, &scene)?;
-        let members = self.members.iter().zip(forces).map(|((id, _, _), &force)| msg::MemberForce { id: id.clone(), force }).collect();
+        let members = self
+            .members
+            .iter()
+            .zip(forces)
+            .map(|((id, _, _), &force)| msg::MemberForce { id: id.clone(), force })
+            .collect();
         let stage_name = stage.name().to_string();
-        self.log(self.channels.members, ns, &msg::MemberForces { stage: stage_name.clone(), step: step as u64, members })?;
+        self.log(
+            self.channels.members,
+            ns,
+            &msg::MemberForces {
+                stage: stage_name.clone(),
+                step: step as u64,
+                members,
+            },
+        )?;
         if let Some(e) = energy {
             let total = e.kinetic + e.strain + e.damping - e.external;
-            let energy = msg::Energy { stage: stage_name, step: step as u64, kinetic: e.kinetic, strain: e.strain, damping: e.damping, external: e.external, total };
+            let energy = msg::Energy {
+                stage: stage_name,
+                step: step as u64,
+                kinetic: e.kinetic,
+                strain: e.strain,
+                damping: e.damping,
+                external: e.external,
+                total,
+            };
             self.log(self.channels.energy, ns, &energy)?;
         }
         Ok(())
@@ -169,17 +236,39 @@ impl McapRecorder {
             for color in [BROWN, RED, GREY] {
                 let points: Vec<Point3> = (self.members.iter().zip(forces))
                     .filter(|((_, _, k), &f)| *k == kind && state(kind, f) == color)
-                    .flat_map(|((_, ends, _), _)| ends.map(|n| Point3 { x: positions[n].x, y: positions[n].y, z: positions[n].z }))
+                    .flat_map(|((_, ends, _), _)| {
+                        ends.map(|n| Point3 {
+                            x: positions[n].x,
+                            y: positions[n].y,
+                            z: positions[n].z,
+                        })
+                    })
                     .collect();
                 if !points.is_empty() {
                     let r#type = line_primitive::Type::LineList as i32;
-                    lines.push(LinePrimitive { r#type, thickness, scale_invariant: true, points, color: Some(color), ..Default::default() });
+                    lines.push(LinePrimitive {
+                        r#type,
+                        thickness,
+                        scale_invariant: true,
+                        points,
+                        color: Some(color),
+                        ..Default::default()
+                    });
                 }
             }
         }
         let timestamp = Timestamp::new((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32);
-        let entity = SceneEntity { timestamp: Some(timestamp), frame_id: "world".into(), id: "tensegrity".into(), lines, ..Default::default() };
-        SceneUpdate { entities: vec![entity], ..Default::default() }
+        let entity = SceneEntity {
+            timestamp: Some(timestamp),
+            frame_id: "world".into(),
+            id: "tensegrity".into(),
+            lines,
+            ..Default::default()
+        };
+        SceneUpdate {
+            entities: vec![entity],
+            ..Default::default()
+        }
     }
 
     fn record_frame(&mut self, frame: &Frame) -> Result<(), Error> {
@@ -222,7 +311,11 @@ impl Clock {
 
     /// Log time of `frame` [s]; also tracks the stage's last step.
     fn frame_time(&mut self, frame: &Frame) -> f64 {
-        let t = if self.folding { frame.step as f64 * STATIC_STEP } else { frame.time };
+        let t = if self.folding {
+            frame.step as f64 * STATIC_STEP
+        } else {
+            frame.time
+        };
         if let Some(prev) = self.latest.filter(|&p| t > p) {
             self.step = t - prev;
         }
@@ -307,23 +400,22 @@ impl Recorder for McapRecorder {
             self.end_stage(stage)?;
         }
         let mut writer = self.writer.take().ok_or("MCAP recorder already finished")?;
-        write_status(&mut writer, status)?;
+        let metadata = BTreeMap::from([("status".to_string(), status.to_string())]);
+        writer.write_metadata(&mcap::records::Metadata {
+            name: "status".into(),
+            metadata,
+        })?;
         writer.finish()?;
         Ok(())
     }
 }
 
-fn write_status(writer: &mut mcap::Writer<BufWriter<File>>, status: &str) -> Result<(), Error> {
-    let metadata = BTreeMap::from([("status".to_string(), status.to_string())]);
-    Ok(writer.write_metadata(&mcap::records::Metadata { name: "status".into(), metadata })?)
-}
-
 impl Drop for McapRecorder {
-    /// An unwinding panic still closes the file (mcap's writer finishes on drop), so say why
-    /// it ended early.
+    /// A recorder dropped without `finish` (an unwinding panic) still closes a readable file,
+    /// saying why it ended early.
     fn drop(&mut self) {
-        if let Some(writer) = &mut self.writer {
-            let _ = write_status(writer, "failed: recorder dropped before finish");
+        if self.writer.is_some() {
+            let _ = self.finish("failed: recorder dropped before finish");
         }
     }
 }
@@ -336,7 +428,12 @@ mod tests {
 
     #[test]
     fn logs_every_recorded_step_on_one_increasing_timeline() {
-        let model = TowerSpec { struts: 3, stages: 1, ..TowerSpec::paper() }.build();
+        let model = TowerSpec {
+            struts: 3,
+            stages: 1,
+            ..TowerSpec::paper()
+        }
+        .build();
         let path = temp_path("replay.mcap");
         let mut rec = McapRecorder::create(&path, "case-7", 3).unwrap();
         drive(&mut rec, &model, 10).unwrap();
@@ -365,7 +462,10 @@ mod tests {
         // 0.01 s), folding from 0.31 s in steps of 0.1 s to 1.31 s, deployment from 1.41 s.
         let ms = |t: &u64| (*t as f64 / 1e6).round() as u64;
         assert_eq!(times["/tsim/stage"].iter().map(ms).collect::<Vec<_>>(), [0, 100, 200, 310, 1410]);
-        assert_eq!(times["/tsim/energy"][..6].iter().map(ms).collect::<Vec<_>>(), [200, 230, 260, 290, 300, 310]);
+        assert_eq!(
+            times["/tsim/energy"][..6].iter().map(ms).collect::<Vec<_>>(),
+            [200, 230, 260, 290, 300, 310]
+        );
 
         let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
         assert!(summary.chunk_indexes.iter().all(|c| c.compression == "zstd"));
@@ -373,14 +473,28 @@ mod tests {
 
     #[test]
     fn colours_members_by_state() {
-        let model = TowerSpec { struts: 3, stages: 1, ..TowerSpec::paper() }.build();
+        let model = TowerSpec {
+            struts: 3,
+            stages: 1,
+            ..TowerSpec::paper()
+        }
+        .build();
         let path = temp_path("colours.mcap");
         let mut rec = McapRecorder::create(&path, "c", 1).unwrap();
-        rec.model(&ModelRecord { model: &model, rest_lengths: &[1.0; 12], masses: &[1.0; 6] }).unwrap();
+        rec.model(&ModelRecord {
+            model: &model,
+            rest_lengths: &[1.0; 12],
+            masses: &[1.0; 6],
+        })
+        .unwrap();
         // Struts, then side cables (the second below the slack threshold), then rings.
         let forces = [-5.0, -5.0, 0.0, 2.0, 1e-9, -1.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0];
         let scene = rec.scene(0, &model.positions(), &forces);
-        let summary: Vec<_> = scene.entities[0].lines.iter().map(|l| (l.thickness, l.color.unwrap(), l.points.len())).collect();
+        let summary: Vec<_> = scene.entities[0]
+            .lines
+            .iter()
+            .map(|l| (l.thickness, l.color.unwrap(), l.points.len()))
+            .collect();
         let (s, c) = (STRUT_WIDTH, CABLE_WIDTH);
         assert_eq!(summary, [(s, BROWN, 4), (s, GREY, 2), (c, RED, 14), (c, GREY, 4)]);
         rec.finish("complete").unwrap();

@@ -1,0 +1,109 @@
+//! Writes `result.h5` and `replay.mcap` for the paper's tower with synthetic but known data,
+//! for the Python interop tests (tests/python/test_outputs.py), which recompute the same
+//! values:
+//! - form-finding: residuals 1, 1e-3, 1e-9; positions = the nominal geometry; forces −10 N
+//!   (struts) and 5 N (cables); eigen: ω² = 1, 4, 9, 16, no damping modes;
+//! - free vibration and deployment: steps 0..=301, time = 1e-3 s × step; folding: steps
+//!   0..=21, fraction = step / 21;
+//! - at step s: position = initial + 1e-3 s (every component), velocity = s, member length =
+//!   1 + s, energies kinetic 0.5 s, strain 100 − 0.5 s, damping 0.01 s, external 0.02 s.
+//!
+//! Usage: `write_sample OUTDIR [--every N] [--slow]`. `--slow` runs 3000 free-vibration steps
+//! at 2 ms each (about 6 s) so that a reader can watch the file grow or the process be killed.
+
+use nalgebra::Vector3;
+use std::path::PathBuf;
+use tsim::model::generate::TowerSpec;
+use tsim::model::MemberKind;
+use tsim::record::h5::Hdf5Recorder;
+use tsim::record::replay::McapRecorder;
+use tsim::record::{EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Recorder, Stage};
+
+type Result<T> = std::result::Result<T, Box<dyn std::error::Error + Send + Sync>>;
+
+fn main() -> Result<()> {
+    let mut args = std::env::args().skip(1);
+    let (mut out, mut every, mut slow) = (None, 1, false);
+    while let Some(arg) = args.next() {
+        match arg.as_str() {
+            "--every" => every = args.next().ok_or("--every needs a value")?.parse()?,
+            "--slow" => slow = true,
+            _ => out = Some(PathBuf::from(arg)),
+        }
+    }
+    let out = out.ok_or("usage: write_sample OUTDIR [--every N] [--slow]")?;
+    std::fs::create_dir_all(&out)?;
+    let mut h5 = Hdf5Recorder::create(&out.join("result.h5"), "sample", "case: sample\n", every)?;
+    let mut mcap = McapRecorder::create(&out.join("replay.mcap"), "sample", every)?;
+    let mut recorders: [&mut dyn Recorder; 2] = [&mut h5, &mut mcap];
+    let mut each = |f: &mut dyn FnMut(&mut dyn Recorder) -> tsim::record::RecordResult| recorders.iter_mut().try_for_each(|r| f(&mut **r));
+
+    let model = TowerSpec::paper().build();
+    let (n, m) = (model.node_count(), model.members.len());
+    let x0 = model.positions();
+    let forces: Vec<f64> = model
+        .members
+        .iter()
+        .map(|mb| if mb.kind == MemberKind::Strut { -10.0 } else { 5.0 })
+        .collect();
+    let (rest, masses) = (vec![1.0; m], vec![2.0; n]);
+    each(&mut |r| {
+        r.model(&ModelRecord {
+            model: &model,
+            rest_lengths: &rest,
+            masses: &masses,
+        })
+    })?;
+    each(&mut |r| {
+        r.formfinding(&FormFindRecord {
+            residuals: &[1.0, 1e-3, 1e-9],
+            positions: &x0,
+            forces: &forces,
+        })
+    })?;
+    let shapes = vec![vec![Vector3::new(0.0, 0.0, 1.0); n]; 4];
+    let eigen = EigenRecord {
+        omega2: &[1.0, 4.0, 9.0, 16.0],
+        mode_shapes: &shapes,
+        rayleigh_alpha: 0.1,
+        rayleigh_beta: 0.01,
+        damping_modes: &[],
+        damping_ratio: &[],
+    };
+    each(&mut |r| r.eigen(&eigen))?;
+
+    for stage in [Stage::FreeVibration, Stage::Folding, Stage::Deployment] {
+        let steps = match stage {
+            Stage::Folding => 21,
+            Stage::FreeVibration if slow => 3000,
+            _ => 301,
+        };
+        each(&mut |r| r.begin_stage(stage))?;
+        for step in 0..=steps {
+            let s = step as f64;
+            let positions: Vec<_> = x0.iter().map(|p| p + Vector3::repeat(1e-3 * s)).collect();
+            let velocities = vec![Vector3::repeat(s); n];
+            let lengths = vec![1.0 + s; m];
+            let frame = Frame {
+                step,
+                time: if stage == Stage::Folding { s / steps as f64 } else { 1e-3 * s },
+                positions: &positions,
+                velocities: (stage != Stage::Folding).then_some(velocities.as_slice()),
+                forces: &forces,
+                lengths: &lengths,
+                energy: Energy {
+                    kinetic: 0.5 * s,
+                    strain: 100.0 - 0.5 * s,
+                    damping: 0.01 * s,
+                    external: 0.02 * s,
+                },
+            };
+            each(&mut |r| r.frame(&frame))?;
+            if slow && stage == Stage::FreeVibration {
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            }
+        }
+        each(&mut |r| r.end_stage(stage))?;
+    }
+    each(&mut |r| r.finish("complete"))
+}

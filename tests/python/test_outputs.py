@@ -1,0 +1,255 @@
+"""Interop tests of tsim's outputs (issue 4) with the Python readers users rely on.
+
+The data come from `examples/write_sample.rs`, which writes the paper's tower with synthetic
+but known values (documented there; recomputed here). Run from the repository root:
+
+    .venv/bin/pytest tests/python
+"""
+
+import json
+import os
+import signal
+import subprocess
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import xarray as xr
+from mcap.reader import make_reader
+from mcap.records import Footer
+from mcap.stream_reader import StreamReader
+from mcap_protobuf.decoder import DecoderFactory
+
+ROOT = Path(__file__).resolve().parents[2]
+EVERY = 2
+DT = 1e-3
+STEPS = {"free_vibration": 301, "folding": 21, "deployment": 301}
+GROUPS = ["model", "formfinding", "eigen", "free_vibration", "folding", "deployment"]
+PER_STEP_TOPICS = ["/tsim/scene", "/tsim/energy", "/tsim/members"]
+
+
+def recorded_steps(last):
+    """Steps kept by the output stride: multiples of EVERY, and always the last."""
+    steps = list(range(0, last + 1, EVERY))
+    return steps if steps[-1] == last else steps + [last]
+
+
+@pytest.fixture(scope="session")
+def sample_bin():
+    subprocess.run(["cargo", "build", "--release", "--example", "write_sample"], cwd=ROOT, check=True)
+    meta = subprocess.run(["cargo", "metadata", "--format-version", "1", "--no-deps"], cwd=ROOT, check=True, capture_output=True, text=True)
+    return Path(json.loads(meta.stdout)["target_directory"]) / "release" / "examples" / "write_sample"
+
+
+@pytest.fixture(scope="session")
+def sample(sample_bin, tmp_path_factory):
+    out = tmp_path_factory.mktemp("sample")
+    subprocess.run([sample_bin, out, "--every", str(EVERY)], check=True)
+    return out
+
+
+def slow_writer(sample_bin, out):
+    return subprocess.Popen([sample_bin, out, "--every", "1", "--slow"])
+
+
+def open_swmr(path, timeout=30.0):
+    """Opens a file being written, waiting for the writer to create it and start SWMR."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return h5py.File(path, "r", libver="latest", swmr=True)
+        except (OSError, FileNotFoundError):
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.05)
+
+
+def wait_for_rows(f, dataset, rows, timeout=30.0):
+    deadline = time.monotonic() + timeout
+    while True:
+        ds = f[dataset]
+        ds.refresh()
+        if ds.shape[0] >= rows:
+            return ds.shape[0]
+        assert time.monotonic() < deadline, f"{dataset} stuck at {ds.shape[0]} rows"
+        time.sleep(0.05)
+
+
+def test_every_group_opens_in_xarray_with_named_dims(sample):
+    path = sample / "result.h5"
+    root = xr.open_dataset(path, engine="h5netcdf")
+    assert root.attrs["status"] == "complete"
+    assert root.attrs["units"] == "SI (m, N, kg, s)"
+    assert root.attrs["case_id"] == "sample"
+    assert root.attrs["config"] == "case: sample\n"
+    assert root.attrs["tsim_version"]
+    expected_dims = {
+        "model": {"node": 20, "member": 50, "xyz": 3, "end": 2},
+        "formfinding": {"iteration": 3, "node": 20, "member": 50, "xyz": 3},
+        "eigen": {"mode": 4, "node": 20, "xyz": 3},
+    }
+    for g in ["free_vibration", "folding", "deployment"]:
+        expected_dims[g] = {"time": len(recorded_steps(STEPS[g])), "node": 20, "member": 50, "xyz": 3}
+    for g in GROUPS:
+        ds = xr.open_dataset(path, engine="h5netcdf", group=g)
+        assert dict(ds.sizes) == expected_dims[g], g
+        assert set(expected_dims[g]) <= set(ds.coords), g
+        assert not any(d.startswith("phony") for d in ds.dims)
+        for name, var in ds.variables.items():
+            assert {"units", "long_name"} <= set(var.attrs), f"{g}/{name}"
+    assert list(xr.open_dataset(path, engine="h5netcdf", group="model").xyz.values) == ["x", "y", "z"]
+    folding = xr.open_dataset(path, engine="h5netcdf", group="folding")
+    assert "fraction" in folding.coords and folding.fraction.dims == ("time",)
+    assert folding.position.dims == ("time", "node", "xyz")
+    assert "velocity" not in folding
+    deployment = xr.open_dataset(path, engine="h5netcdf", group="deployment")
+    assert deployment.velocity.dims == ("time", "node", "xyz")
+    assert deployment.member_force.dims == ("time", "member")
+    assert deployment.kinetic_energy.attrs["units"] == "J"
+
+
+def test_values_equal_the_written_ones(sample):
+    path = sample / "result.h5"
+    model = xr.open_dataset(path, engine="h5netcdf", group="model")
+    x0 = model.initial_position.values
+    assert model.node.values[0] == "b0_0" and model.member.values[0] == "strut0_0"
+    strut = model.member_kind.values == "strut"
+    assert strut.sum() == 10
+    ff = xr.open_dataset(path, engine="h5netcdf", group="formfinding")
+    np.testing.assert_array_equal(ff.residual_norm.values, [1.0, 1e-3, 1e-9])
+    np.testing.assert_array_equal(ff.member_force.values, np.where(strut, -10.0, 5.0))
+    eigen = xr.open_dataset(path, engine="h5netcdf", group="eigen")
+    np.testing.assert_allclose(eigen.frequency.values, np.arange(1, 5) / (2 * np.pi))
+    assert list(eigen.mode.values) == [1, 2, 3, 4]
+    assert eigen.attrs["rayleigh_alpha"] == 0.1 and len(eigen.attrs["damping_modes"]) == 0
+    for g, last in STEPS.items():
+        ds = xr.open_dataset(path, engine="h5netcdf", group=g)
+        s = np.array(recorded_steps(last), dtype=float)
+        if g == "folding":
+            np.testing.assert_array_equal(ds.time.values, s)
+            np.testing.assert_allclose(ds.fraction.values, s / last)
+        else:
+            np.testing.assert_allclose(ds.time.values, DT * s)
+            np.testing.assert_array_equal(ds.velocity.values[:, 0, 0], s)
+        np.testing.assert_allclose(ds.kinetic_energy.values, 0.5 * s)
+        np.testing.assert_allclose(ds.strain_energy.values, 100 - 0.5 * s)
+        np.testing.assert_allclose(ds.damping_energy.values, 0.01 * s)
+        np.testing.assert_allclose(ds.external_work.values, 0.02 * s)
+        np.testing.assert_allclose(ds.position.values, x0[None] + 1e-3 * s[:, None, None])
+        np.testing.assert_array_equal(ds.member_length.values, np.broadcast_to(1 + s[:, None], (len(s), 50)))
+    # An energy curve by label: kinetic energy at t = 0.1 s of deployment (step 100).
+    dep = xr.open_dataset(path, engine="h5netcdf", group="deployment")
+    assert dep.kinetic_energy.sel(time=0.1, method="nearest").item() == pytest.approx(50.0)
+
+
+def test_h5py_reads_a_running_case_with_swmr(sample_bin, tmp_path):
+    writer = slow_writer(sample_bin, tmp_path)
+    try:
+        with open_swmr(tmp_path / "result.h5") as f:
+            assert f.attrs["status"] == b"running"
+            first = wait_for_rows(f, "free_vibration/time", 1)
+            grown = wait_for_rows(f, "free_vibration/time", first + 1)
+            assert grown > first
+            kinetic = f["free_vibration/kinetic_energy"]
+            kinetic.refresh()
+            n = min(kinetic.shape[0], grown)
+            np.testing.assert_allclose(kinetic[:n], 0.5 * np.arange(n))
+        assert writer.wait(timeout=60) == 0
+    finally:
+        writer.kill()
+    with h5py.File(tmp_path / "result.h5", "r") as f:
+        assert f.attrs["status"] == b"complete"
+        assert f["free_vibration/time"].shape == (3001,)
+
+
+def test_mcap_decodes_with_foxglove_schemas(sample):
+    topics = defaultdict(list)
+    with open(sample / "replay.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        assert {c.compression for c in summary.chunk_indexes} == {"zstd"}
+        schemas = {ch.topic: summary.schemas[ch.schema_id].name for ch in summary.channels.values()}
+        for _, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
+            topics[channel.topic].append((message.log_time, decoded))
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert schemas["/tsim/scene"] == "foxglove.SceneUpdate"
+    assert schemas["/tsim/energy"] == "energy.Energy"
+    assert schemas["/tsim/members"] == "memberforces.MemberForces"
+    assert schemas["/tsim/stage"] == "stagestart.StageStart"
+    assert metadata["status"] == {"status": "complete"}
+    assert metadata["case"]["case_id"] == "sample"
+
+    recorded = sum(len(recorded_steps(last)) for last in STEPS.values())
+    assert len(topics["/tsim/energy"]) == recorded
+    # Form-finding logs its equilibrium scene and member forces, with no energy.
+    assert len(topics["/tsim/scene"]) == len(topics["/tsim/members"]) == recorded + 1
+    stages = [m.name for _, m in topics["/tsim/stage"]]
+    assert stages == ["formfinding", "eigen", "free_vibration", "folding", "deployment"]
+    for topic, messages in topics.items():
+        times = [t for t, _ in messages]
+        assert all(a < b for a, b in zip(times, times[1:])), topic
+
+    energy = [m for _, m in topics["/tsim/energy"]]
+    fv = [e for e in energy if e.stage == "free_vibration"]
+    assert [e.step for e in fv] == recorded_steps(STEPS["free_vibration"])
+    for e in fv:
+        assert e.kinetic == pytest.approx(0.5 * e.step)
+        assert e.total == pytest.approx(100 + 0.01 * e.step - 0.02 * e.step)
+    # Stages back to back: free vibration starts 0.2 s in (after form-finding and eigen,
+    # 0.1 s each) and its step 300 is logged at 0.2 + 0.3 s.
+    fv_times = [t for t, m in topics["/tsim/energy"] if m.stage == "free_vibration"]
+    assert fv_times[0] == pytest.approx(0.2e9, abs=1) and fv_times[-2] == pytest.approx(0.5e9, abs=1)
+
+    # One LINE_LIST per (kind, state): all struts compressed (brown), all cables taut (red).
+    _, scene = topics["/tsim/scene"][1]
+    lines = scene.entities[0].lines
+    assert [(line.type, line.thickness, len(line.points)) for line in lines] == [(2, 6, 2 * 10), (2, 2, 2 * 40)]
+    assert [line.color.r for line in lines] == [pytest.approx(0.55), pytest.approx(0.85)]
+    _, members = topics["/tsim/members"][1]
+    assert members.members[0].id == "strut0_0" and members.members[0].force == -10.0
+
+
+def test_kill_9_leaves_recognisably_incomplete_outputs(sample_bin, tmp_path):
+    writer = slow_writer(sample_bin, tmp_path)
+    try:
+        with open_swmr(tmp_path / "result.h5") as f:
+            wait_for_rows(f, "free_vibration/time", 300)
+        os.kill(writer.pid, signal.SIGKILL)
+        writer.wait(timeout=10)
+    finally:
+        writer.kill()
+    assert writer.returncode == -signal.SIGKILL
+
+    h5 = tmp_path / "result.h5"
+    # The SWMR writer's mark stays in the superblock; h5clear -s removes it.
+    subprocess.run(["h5clear", "-s", h5], check=True)
+    with h5py.File(h5, "r") as f:
+        assert f.attrs["status"] == b"running"
+        rows = f["free_vibration/time"].shape[0]
+        assert 300 <= rows < 3001
+        np.testing.assert_allclose(f["free_vibration/kinetic_energy"][:], 0.5 * np.arange(rows))
+
+    # The MCAP has no footer and no status record; its complete chunks still stream.
+    with open(tmp_path / "replay.mcap", "rb") as f:
+        with pytest.raises(Exception):
+            make_reader(f).get_summary()
+    records = []
+    with open(tmp_path / "replay.mcap", "rb") as f:
+        try:
+            records.extend(StreamReader(f).records)
+        except Exception:
+            pass  # truncated mid-record
+    assert not any(isinstance(r, Footer) for r in records)
+
+
+def test_foxglove_layout_shows_scene_and_energy():
+    layout = json.loads((ROOT / "configs" / "foxglove-layout.json").read_text())
+    panels = layout["configById"]
+    three_d = next(v for k, v in panels.items() if k.startswith("3D!"))
+    assert three_d["topics"]["/tsim/scene"]["visible"]
+    plot = next(v for k, v in panels.items() if k.startswith("Plot!"))
+    assert {p["value"] for p in plot["paths"]} == {f"/tsim/energy.{f}" for f in ["kinetic", "strain", "damping", "total"]}
+    assert set(panels) == {layout["layout"]["first"], layout["layout"]["second"]}
