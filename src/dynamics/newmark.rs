@@ -123,6 +123,20 @@ impl<'a> Newmark<'a> {
             .collect()
     }
 
+    /// The damping force at velocities `v` with the βK stiffness `tangent` selects, at
+    /// the assembly's current state.
+    fn damping_force_now(&self, v: &[f64]) -> Vec<f64> {
+        match self.tangent {
+            DampingTangent::Current => {
+                let n = v.len();
+                let mut k = Mat::zeros(n, n);
+                self.asm.add_tangent(1.0, &mut k);
+                self.damping_force(&k, v)
+            }
+            _ => self.damping_force(&self.k_damp, v),
+        }
+    }
+
     fn ledger_now(&self, damping: f64, external: f64) -> Energy {
         Energy {
             kinetic: 0.5 * self.mass.iter().zip(&self.v).map(|(m, v)| m * v * v).sum::<f64>(),
@@ -212,14 +226,7 @@ impl<'a> Newmark<'a> {
         let v_next: Vec<f64> = (0..n)
             .map(|i| self.v[i] + dt * ((1.0 - gamma) * self.a[i] + gamma * a_next[i]))
             .collect();
-        let fd_next = match self.tangent {
-            DampingTangent::Current => {
-                let mut k = Mat::zeros(n, n);
-                self.asm.add_tangent(1.0, &mut k);
-                self.damping_force(&k, &v_next)
-            }
-            _ => self.damping_force(&self.k_damp, &v_next),
-        };
+        let fd_next = self.damping_force_now(&v_next);
         // Trapezoidal work of the forces each equation actually used: with average
         // acceleration this is the discrete energy identity of the scheme.
         let (mut dw, mut dd) = (0.0, 0.0);
@@ -278,14 +285,7 @@ impl Residual for StepProblem<'_, '_> {
                 }
             }
         }
-        let fd = match nm.tangent {
-            DampingTangent::Current => {
-                let mut kc = Mat::zeros(n, n);
-                nm.asm.add_tangent(1.0, &mut kc);
-                nm.damping_force(&kc, &v)
-            }
-            _ => nm.damping_force(&nm.k_damp, &v),
-        };
+        let fd = nm.damping_force_now(&v);
         let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);
         for i in 0..n {
             let m = nm.mass[i];
