@@ -280,9 +280,32 @@ fn bad_models_are_rejected_by_name() {
 fn unknown_node_in_explicit_model_is_named() {
     use tsim::config::{MemberSpec, ModelSpec, NodeSpec};
     let spec = ModelSpec {
-        nodes: vec![NodeSpec { id: "a".into(), xyz: [0.0; 3], fix: vec![] }, NodeSpec { id: "b".into(), xyz: [1.0, 0.0, 0.0], fix: vec![] }],
-        members: vec![MemberSpec { id: "m1".into(), nodes: ["a".into(), "c".into()], kind: MemberKind::Cable, groups: vec![], rest_length: None }],
+        nodes: vec![
+            NodeSpec {
+                id: "a".into(),
+                xyz: [0.0; 3],
+                fix: vec![],
+            },
+            NodeSpec {
+                id: "b".into(),
+                xyz: [1.0, 0.0, 0.0],
+                fix: vec![],
+            },
+        ],
+        members: vec![MemberSpec {
+            id: "m1".into(),
+            nodes: ["a".into(), "c".into()],
+            kind: MemberKind::Cable,
+            groups: vec![],
+            rest_length: None,
+        }],
         ..Default::default()
     };
-    assert_eq!(spec.build().unwrap_err(), ModelError::UnknownNode { member: "m1".into(), node: "c".into() });
+    assert_eq!(
+        spec.build().unwrap_err(),
+        ModelError::UnknownNode {
+            member: "m1".into(),
+            node: "c".into()
+        }
+    );
 }
