@@ -40,6 +40,8 @@ pub struct TransientSummary {
     pub max_cable_stretch: f64,
     /// Largest strut compression over the stage [N] (positive number).
     pub max_strut_compression: f64,
+    /// Wall time of the stage, recording included [s].
+    pub wall_seconds: f64,
     #[serde(skip)]
     pub final_positions: Vec<Vector3<f64>>,
 }
@@ -74,6 +76,7 @@ impl Transient<'_> {
             }
         };
         let mass = super::eigen::free_masses(&dofs, node_mass);
+        let started = std::time::Instant::now();
         let n = dofs.len();
         let mut f0 = vec![0.0; n];
         load_free(0.0, &mut f0);
@@ -142,6 +145,7 @@ impl Transient<'_> {
         }
         recorder.end_stage(self.stage).map_err(rec)?;
         summary.final_kinetic = nm.energy.kinetic;
+        summary.wall_seconds = started.elapsed().as_secs_f64();
         summary.final_positions = nm.asm.x;
         Ok(summary)
     }
