@@ -110,31 +110,55 @@ fn bad_config(text: &str) -> (Output, PathBuf) {
     (out, path)
 }
 
+/// `path:line` of the first line of `text` containing `needle`.
+fn at(path: &Path, text: &str, needle: &str) -> String {
+    let line = text.lines().position(|l| l.contains(needle)).expect("needle in text") + 1;
+    format!("{}:{line}", path.display())
+}
+
 #[test]
 fn bad_configs_fail_fast_with_location() {
     let good = std::fs::read_to_string(SWEEP).unwrap();
-    let (out, path) = bad_config(&good.replace("masses: paper", "masses: paper\nmassess: 3"));
+    let text = good.replace("masses: paper", "masses: paper\nmassess: 3");
+    let (out, path) = bad_config(&text);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         err.contains(path.to_str().unwrap()) && err.contains("massess") && err.contains("line 8"),
         "{err}"
     );
 
-    let (out, _) = bad_config(&good.replace("duration: 0.1\n", "duration: 0.1\n  dt: -0.001\n"));
+    let text = good.replace("duration: 0.1\n", "duration: 0.1\n  dt: -0.001\n");
+    let (out, path) = bad_config(&text);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("deployment.dt") && err.contains("> 0"), "{err}");
+    assert!(
+        err.contains(&at(&path, &text, "dt: -0.001")) && err.contains("deployment.dt") && err.contains("> 0"),
+        "{err}"
+    );
 
-    let (out, _) = bad_config(&good.replace("modes: [1, 6]", "modes: [1, 60]"));
+    let text = good.replace("modes: [1, 6]", "modes: [1, 60]");
+    let (out, path) = bad_config(&text);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("eigen.rayleigh.modes[1]") && err.contains("1..=12"), "{err}");
+    assert!(
+        err.contains(&at(&path, &text, "modes: [1, 60]")) && err.contains("eigen.rayleigh.modes[1]") && err.contains("1..=12"),
+        "{err}"
+    );
 
-    let (out, _) = bad_config(&good.replace("[0.1, 0.1] } }", "[1.5, 0.1] } }"));
+    // A bad value set by a sweep axis points at that axis value.
+    let text = good.replace("[0.1, 0.1] } }", "[1.5, 0.1] } }");
+    let (out, path) = bad_config(&text);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("ratios[0]") && err.contains("zeta=0.1"), "{err}");
+    assert!(
+        err.contains(&at(&path, &text, "[1.5, 0.1]")) && err.contains("ratios[0]") && err.contains("zeta=0.1"),
+        "{err}"
+    );
 
-    let (out, _) = bad_config(&good.replace("groups: [top], force: [0.0", "groups: [tip], force: [0.0"));
+    let text = good.replace("groups: [top], force: [0.0", "groups: [tip], force: [0.0");
+    let (out, path) = bad_config(&text);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("deployment.load.groups") && err.contains("tip"), "{err}");
+    assert!(
+        err.contains(&at(&path, &text, "groups: [tip]")) && err.contains("deployment.load.groups") && err.contains("tip"),
+        "{err}"
+    );
 
     let (out, _) = bad_config(&good.replace("name: small", "name: small\nmodel: [unclosed"));
     assert!(String::from_utf8_lossy(&out.stderr).contains("line"));

@@ -3,6 +3,7 @@
 //! column from the YAML parser), out-of-range values name the field and the range.
 
 mod build;
+mod locate;
 mod materials;
 mod schema;
 mod validate;
@@ -11,6 +12,19 @@ pub use materials::{library, LawSpec, MaterialSpec};
 pub use schema::*;
 pub use validate::ConfigError;
 
+/// Line of a dotted field path in the YAML text (see `locate`).
+pub fn locate_line(text: &str, field: &str) -> Option<usize> {
+    locate::line_of(text, field)
+}
+
+/// `file:line` for a field when its line can be found, else `file`.
+pub fn located(origin: &str, text: &str, field: &str) -> String {
+    match locate_line(text, field) {
+        Some(line) => format!("{origin}:{line}"),
+        None => origin.to_string(),
+    }
+}
+
 /// Parses and validates one case configuration. `origin` names the file in errors.
 pub fn parse_case(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
     let cfg: CaseConfig = serde_saphyr::from_str(text).map_err(|e| ConfigError::Syntax {
@@ -18,7 +32,7 @@ pub fn parse_case(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
         message: e.to_string(),
     })?;
     cfg.validate().map_err(|(field, message)| ConfigError::Value {
-        file: origin.to_string(),
+        file: located(origin, text, &field),
         field,
         message,
     })?;

@@ -2,7 +2,7 @@
 //! case ids name output directories), each case a full config validated before any work.
 
 use super::CaseOutcome;
-use crate::config::{parse_case, CaseConfig, ConfigError};
+use crate::config::{located, parse_case, CaseConfig, ConfigError};
 use serde_json::Value;
 use std::path::Path;
 
@@ -30,6 +30,23 @@ fn set_path(v: &mut Value, path: &str, new: Value) -> Result<(), String> {
     Ok(())
 }
 
+/// Line of an axis value: the first `label:` line carrying `label` after the axis' `name:`.
+fn value_line(text: &str, axis: &str, label: &str) -> Option<usize> {
+    let lines: Vec<&str> = text.lines().collect();
+    let start = lines
+        .iter()
+        .position(|l| l.trim_start().trim_start_matches("- ").trim_start() == format!("name: {axis}"))?;
+    let quoted = [
+        format!("label: {label}"),
+        format!("label: \"{label}\""),
+        format!("label: '{label}'"),
+    ];
+    lines[start..]
+        .iter()
+        .position(|l| quoted.iter().any(|q| l.contains(q.as_str())))
+        .map(|k| start + k + 1)
+}
+
 /// Expands a config file's text into its cases; every case is validated.
 pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigError> {
     let base = parse_case(text, origin)?;
@@ -40,8 +57,14 @@ pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigErr
         file: origin.into(),
         message: e.to_string(),
     })?;
+    // `at` is the line an error points to (the offending sweep value, or the base field).
+    let value_err_at = |at: Option<usize>, field: String, message: String| ConfigError::Value {
+        file: at.map_or_else(|| origin.to_string(), |line| format!("{origin}:{line}")),
+        field,
+        message,
+    };
     let value_err = |field: String, message: String| ConfigError::Value {
-        file: origin.into(),
+        file: located(origin, text, "sweep"),
         field,
         message,
     };
@@ -76,7 +99,13 @@ pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigErr
         for (a, axis) in axes.iter().enumerate() {
             let value = &axis.values[idx[a]];
             for (path, new) in &value.set {
-                set_path(&mut v, path, new.clone()).map_err(|m| value_err(format!("sweep.axes[{a}].values[{}].set", idx[a]), m))?;
+                set_path(&mut v, path, new.clone()).map_err(|m| {
+                    value_err_at(
+                        value_line(text, &axis.name, &value.label),
+                        format!("sweep.axes[{a}].values[{}].set", idx[a]),
+                        m,
+                    )
+                })?;
             }
             params.push((axis.name.clone(), value.label.clone()));
         }
@@ -87,7 +116,20 @@ pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigErr
             )
         };
         let config: CaseConfig = serde_json::from_value(v).map_err(|e| value_err(field(), e.to_string()))?;
-        config.validate().map_err(|(f, m)| value_err(format!("{f} (in {})", field()), m))?;
+        config.validate().map_err(|(f, m)| {
+            // Point at the sweep value that set this field, else at the field in the base config.
+            let setter = axes.iter().zip(&idx).find_map(|(axis, &i)| {
+                let value = &axis.values[i];
+                value
+                    .set
+                    .keys()
+                    .any(|p| f.starts_with(p.as_str()))
+                    .then(|| value_line(text, &axis.name, &value.label))
+                    .flatten()
+            });
+            let at = setter.or_else(|| crate::config::locate_line(text, &f));
+            value_err_at(at, format!("{f} (in {})", field()), m)
+        })?;
         let id = if params.is_empty() {
             config.name.clone()
         } else {
