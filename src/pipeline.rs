@@ -160,8 +160,8 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
             let eq = form_find(&model, &virtual_elements, &cfg.newton)?;
             let forces = balanced_forces(&model, &eq.positions, &eq.forces);
             summary.formfinding = Some(FormFindSummary {
-                iterations: eq.report.iterations,
-                residuals: eq.report.residuals.clone(),
+                iterations: eq.residuals.len() - 1,
+                residuals: eq.residuals.clone(),
                 max_reaction: eq.max_reaction,
                 height: height(&eq.positions),
                 min_force: forces.iter().copied().fold(f64::INFINITY, f64::min),
@@ -170,14 +170,14 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
             let sub = substitute(&model, &eq.positions, &forces, real_laws, cfg.substitution.prestress_scale)?;
             summary.substitution.residual = sub.residual;
             summary.substitution.max_force = sub.max_force;
-            formfound = Some((eq.report.residuals, forces));
+            formfound = Some((eq.residuals, forces));
             (eq.positions, sub.elements)
         }
         None => {
             let rest = cfg.model.members.iter().map(|m| m.rest_length.unwrap_or_default()).collect();
             let elements = Elements { laws: real_laws, rest };
             let eq = form_find(&model, &elements, &cfg.newton)?;
-            summary.substitution.residual = eq.report.residuals.last().copied().unwrap_or_default();
+            summary.substitution.residual = eq.residuals.last().copied().unwrap_or_default();
             summary.substitution.max_force = eq.forces.iter().map(|f| f.abs()).fold(0.0, f64::max);
             (eq.positions, elements)
         }

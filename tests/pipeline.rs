@@ -121,7 +121,16 @@ fn try_newmark_sdof(
         duration: dt * steps as f64,
         max_cuts: 0,
     };
-    let mut nm = Newmark::new(asm, vec![m], vec![v0], vec![0.0], params, rayleigh, DampingTangent::LastConverged);
+    let mut nm = Newmark::new(
+        asm,
+        vec![m],
+        vec![v0],
+        vec![0.0],
+        params,
+        rayleigh,
+        DampingTangent::LastConverged,
+        &NewtonSettings::default(),
+    );
     let no_load = |_: f64, f: &mut [f64]| f.fill(0.0);
     let label = |d: usize| format!("dof {d}");
     let mut out = vec![(nm.u[0] - rest_x, nm.v[0])];

@@ -1,8 +1,7 @@
 use super::Rayleigh;
 use crate::record::Energy;
-use crate::solve::{newton, NewtonReport, NewtonSettings, Residual, Scale, SolveError};
-use crate::tsm::Assembly;
-use faer::Mat;
+use crate::solve::{newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
+use crate::tsm::{assemble_tangent, tangent_product, Assembly, MemberState};
 
 /// Newmark-β integration parameters.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -50,7 +49,8 @@ pub enum DampingTangent {
     Current,
 }
 
-/// State and integrator of one time-stepping stage on the free DOFs.
+/// State and integrator of one time-stepping stage on the free DOFs. Every buffer a step
+/// needs is allocated here, once: a step allocates nothing.
 pub struct Newmark<'a> {
     pub asm: Assembly<'a>,
     pub params: NewmarkParams,
@@ -66,18 +66,34 @@ pub struct Newmark<'a> {
     f: Vec<f64>,
     /// Damping force the last converged equation used.
     fd: Vec<f64>,
-    /// Stiffness βK uses (unused for `Current`).
-    k_damp: Mat<f64>,
+    /// Member states whose K_T the βK term uses (unused for `Current`).
+    damp_states: Vec<MemberState>,
     /// Energy ledger since the stage began.
     pub energy: Energy,
     /// KE + SE at the start of the stage: the balance is KE + SE + D − W − E0.
     pub initial_energy: f64,
     pub time: f64,
+    /// The Newton workspace, taken out while a step runs.
+    ws: Option<NewtonWorkspace>,
+    /// Step buffers: predictor base, trial coordinates, load, velocities and damping force.
+    base: Vec<f64>,
+    trial: Vec<f64>,
+    f_next: Vec<f64>,
+    v_next: Vec<f64>,
+    fd_next: Vec<f64>,
+}
+
+/// α M v + β K(states) v on the free DOFs into `out`.
+fn damping_force(asm: &Assembly, rayleigh: &Rayleigh, mass: &[f64], states: &[MemberState], v: &[f64], out: &mut [f64]) {
+    for i in 0..v.len() {
+        out[i] = rayleigh.alpha * mass[i] * v[i];
+    }
+    tangent_product(asm.model, states, asm.dofs, v, rayleigh.beta, out);
 }
 
 impl<'a> Newmark<'a> {
-    /// Starts at rest-or-moving state (`asm`'s positions, velocities `v`) under external
-    /// force `f0`, with the consistent initial acceleration a0 = M⁻¹(f0 − C v0 − p(x0)).
+    /// Starts at the state of `asm` with velocities `v` under external force `f0`, with
+    /// the consistent initial acceleration a0 = M⁻¹(f0 − C v0 − p(x0)).
     pub fn new(
         asm: Assembly<'a>,
         mass: Vec<f64>,
@@ -86,12 +102,13 @@ impl<'a> Newmark<'a> {
         params: NewmarkParams,
         rayleigh: Rayleigh,
         tangent: DampingTangent,
+        newton: &NewtonSettings,
     ) -> Self {
         let n = mass.len();
         let u = asm.free_coordinates();
-        let mut k_damp = Mat::zeros(n, n);
-        asm.add_tangent(1.0, &mut k_damp);
+        let ws = Some(asm.workspace(newton.linear_solver));
         let mut s = Newmark {
+            damp_states: asm.states.clone(),
             asm,
             params,
             rayleigh,
@@ -102,12 +119,17 @@ impl<'a> Newmark<'a> {
             a: vec![0.0; n],
             f: f0,
             fd: vec![0.0; n],
-            k_damp,
             energy: Energy::default(),
             initial_energy: 0.0,
             time: 0.0,
+            ws,
+            base: vec![0.0; n],
+            trial: vec![0.0; n],
+            f_next: vec![0.0; n],
+            v_next: vec![0.0; n],
+            fd_next: vec![0.0; n],
         };
-        s.fd = s.damping_force(&s.k_damp, &s.v);
+        damping_force(&s.asm, &s.rayleigh, &s.mass, &s.damp_states, &s.v, &mut s.fd);
         for i in 0..n {
             s.a[i] = (s.f[i] - s.fd[i] - s.asm.p_free(i)) / s.mass[i];
         }
@@ -116,24 +138,11 @@ impl<'a> Newmark<'a> {
         s
     }
 
-    fn damping_force(&self, k: &Mat<f64>, v: &[f64]) -> Vec<f64> {
-        let n = v.len();
-        (0..n)
-            .map(|i| self.rayleigh.alpha * self.mass[i] * v[i] + self.rayleigh.beta * (0..n).map(|j| k[(i, j)] * v[j]).sum::<f64>())
-            .collect()
-    }
-
-    /// The damping force at velocities `v` with the βK stiffness `tangent` selects, at
-    /// the assembly's current state.
-    fn damping_force_now(&self, v: &[f64]) -> Vec<f64> {
+    /// Member states the βK term uses now.
+    fn damping_states(&self) -> &[MemberState] {
         match self.tangent {
-            DampingTangent::Current => {
-                let n = v.len();
-                let mut k = Mat::zeros(n, n);
-                self.asm.add_tangent(1.0, &mut k);
-                self.damping_force(&k, v)
-            }
-            _ => self.damping_force(&self.k_damp, v),
+            DampingTangent::Current => &self.asm.states,
+            _ => &self.damp_states,
         }
     }
 
@@ -180,7 +189,7 @@ impl<'a> Newmark<'a> {
                 let second = self.advance_cut(dt / 2.0, depth + 1, settings, load, label)?;
                 Ok(NewtonReport {
                     iterations: first.iterations + second.iterations,
-                    residuals: second.residuals,
+                    residual: second.residual,
                 })
             }
         }
@@ -196,56 +205,63 @@ impl<'a> Newmark<'a> {
     ) -> Result<NewtonReport, SolveError> {
         let n = self.mass.len();
         let t_next = self.time + dt;
-        let mut f_next = vec![0.0; n];
-        load(t_next, &mut f_next);
+        load(t_next, &mut self.f_next);
         let (beta, gamma) = (self.params.beta, self.params.gamma);
         // Predictor: u_{n+1} = u_n + dt v_n + dt² (½ − β) a_n + β dt² a_{n+1}.
-        let base: Vec<f64> = (0..n)
-            .map(|i| self.u[i] + dt * self.v[i] + dt * dt * (0.5 - beta) * self.a[i])
-            .collect();
-        let mut u = self.u.clone();
+        for i in 0..n {
+            self.base[i] = self.u[i] + dt * self.v[i] + dt * dt * (0.5 - beta) * self.a[i];
+        }
+        self.trial.copy_from_slice(&self.u);
         let length = self.asm.model.size();
-        let report = {
-            let mut problem = StepProblem {
-                nm: self,
-                dt,
-                base: &base,
-                f: &f_next,
-            };
-            let result = newton(&mut problem, &mut u, settings, length, label);
-            if result.is_err() {
-                let u_old = self.u.clone();
-                self.asm.set_free(&u_old);
-                return result;
+        let mut trial = std::mem::take(&mut self.trial);
+        let mut ws = self.ws.take().expect("workspace present between steps");
+        let result = newton(&mut StepProblem { nm: self, dt }, &mut trial, settings, length, label, &mut ws);
+        self.ws = Some(ws);
+        let report = match result {
+            Ok(report) => report,
+            Err(e) => {
+                self.trial = trial;
+                let Newmark { asm, u, .. } = self;
+                asm.set_free(u);
+                return Err(e);
             }
-            result?
         };
-        // Commit: accelerations, velocities, damping force, energy ledger.
-        self.asm.set_free(&u);
-        let a_next: Vec<f64> = (0..n).map(|i| (u[i] - base[i]) / (beta * dt * dt)).collect();
-        let v_next: Vec<f64> = (0..n)
-            .map(|i| self.v[i] + dt * ((1.0 - gamma) * self.a[i] + gamma * a_next[i]))
-            .collect();
-        let fd_next = self.damping_force_now(&v_next);
-        // Trapezoidal work of the forces each equation actually used: with average
-        // acceleration this is the discrete energy identity of the scheme.
+        // Commit: positions, accelerations, velocities, damping force, energy ledger.
+        self.asm.set_free(&trial);
+        let c_a = 1.0 / (beta * dt * dt);
         let (mut dw, mut dd) = (0.0, 0.0);
         for i in 0..n {
-            let du = u[i] - self.u[i];
-            dw += 0.5 * (self.f[i] + f_next[i]) * du;
+            let a_next = c_a * (trial[i] - self.base[i]);
+            self.v_next[i] = self.v[i] + dt * ((1.0 - gamma) * self.a[i] + gamma * a_next);
+            self.a[i] = a_next;
+        }
+        let mut fd_next = std::mem::take(&mut self.fd_next);
+        damping_force(
+            &self.asm,
+            &self.rayleigh,
+            &self.mass,
+            self.damping_states(),
+            &self.v_next,
+            &mut fd_next,
+        );
+        // Trapezoidal work of the forces each equation actually used: with average
+        // acceleration this is the discrete energy identity of the scheme.
+        for i in 0..n {
+            let du = trial[i] - self.u[i];
+            dw += 0.5 * (self.f[i] + self.f_next[i]) * du;
             dd += 0.5 * (self.fd[i] + fd_next[i]) * du;
         }
-        self.u = u;
-        self.v = v_next;
-        self.a = a_next;
-        self.f = f_next;
-        self.fd = fd_next;
+        std::mem::swap(&mut self.u, &mut trial);
+        std::mem::swap(&mut self.v, &mut self.v_next);
+        std::mem::swap(&mut self.f, &mut self.f_next);
+        std::mem::swap(&mut self.fd, &mut fd_next);
+        self.trial = trial;
+        self.fd_next = fd_next;
         self.time = t_next;
         let (d, w) = (self.energy.damping + dd, self.energy.external + dw);
         self.energy = self.ledger_now(d, w);
         if self.tangent == DampingTangent::LastConverged {
-            self.k_damp.fill(0.0);
-            self.asm.add_tangent(1.0, &mut self.k_damp);
+            self.damp_states.copy_from_slice(&self.asm.states);
         }
         Ok(report)
     }
@@ -253,48 +269,39 @@ impl<'a> Newmark<'a> {
 
 /// The nonlinear equation of one step: r(u) = f − M a(u) − C v(u) − p(u), with
 /// a = (u − base)/(β dt²), v = v_n + dt((1−γ) a_n + γ a); Jacobian
-/// K_T + M/(β dt²) + (γ/(β dt)) C.
+/// K_T + M/(β dt²) + (γ/(β dt)) C (for `Current`, less ∂K_T/∂u · v).
 struct StepProblem<'s, 'a> {
     nm: &'s mut Newmark<'a>,
     dt: f64,
-    base: &'s [f64],
-    f: &'s [f64],
 }
 
 impl Residual for StepProblem<'_, '_> {
-    fn evaluate(&mut self, u: &[f64], r: &mut [f64], k: &mut Mat<f64>) -> Scale {
+    fn evaluate(&mut self, u: &[f64], r: &mut [f64], k: &mut dyn TangentSink) -> Scale {
         let nm = &mut *self.nm;
         let (beta, gamma, dt) = (nm.params.beta, nm.params.gamma, self.dt);
         nm.asm.set_free(u);
         let n = u.len();
         let c_a = 1.0 / (beta * dt * dt);
         let c_v = gamma / (beta * dt);
-        let v: Vec<f64> = (0..n)
-            .map(|i| nm.v[i] + dt * ((1.0 - gamma) * nm.a[i] + gamma * c_a * (u[i] - self.base[i])))
-            .collect();
+        for i in 0..n {
+            nm.v_next[i] = nm.v[i] + dt * ((1.0 - gamma) * nm.a[i] + gamma * c_a * (u[i] - nm.base[i]));
+        }
         let (alpha_r, beta_r) = (nm.rayleigh.alpha, nm.rayleigh.beta);
         // Jacobian: K_T + β_R c_v K_damp, then M (c_a + α_R c_v) on the diagonal below.
         nm.asm.add_tangent(1.0, k);
-        match nm.tangent {
-            DampingTangent::Current => nm.asm.add_tangent(beta_r * c_v, k),
-            _ => {
-                for i in 0..n {
-                    for j in 0..n {
-                        k[(i, j)] += beta_r * c_v * nm.k_damp[(i, j)];
-                    }
-                }
-            }
-        }
-        let fd = nm.damping_force_now(&v);
+        assemble_tangent(nm.asm.model, nm.damping_states(), nm.asm.dofs, beta_r * c_v, k);
+        let mut fd = std::mem::take(&mut nm.fd_next);
+        damping_force(&nm.asm, &nm.rayleigh, &nm.mass, nm.damping_states(), &nm.v_next, &mut fd);
         let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);
         for i in 0..n {
             let m = nm.mass[i];
-            k[(i, i)] += m * (c_a + alpha_r * c_v);
-            let inertia = m * c_a * (u[i] - self.base[i]);
-            r[i] = self.f[i] - inertia - fd[i] - nm.asm.p_free(i);
-            applied = applied.max(self.f[i].abs()).max(inertia.abs());
+            k.add(i, i, m * (c_a + alpha_r * c_v));
+            let inertia = m * c_a * (u[i] - nm.base[i]);
+            r[i] = nm.f_next[i] - inertia - fd[i] - nm.asm.p_free(i);
+            applied = applied.max(nm.f_next[i].abs()).max(inertia.abs());
             inertia_floor = inertia_floor.max(m * c_a * u[i].abs());
         }
+        nm.fd_next = fd;
         // The inertia term differences absolute coordinates: its round-off is
         // m/(βΔt²)·ε·|u|, which for small steps or far-from-origin nodes exceeds the
         // members' floor. 64 ε as for the members.

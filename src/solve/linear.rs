@@ -1,12 +1,40 @@
-use faer::linalg::solvers::Solve;
-use faer::Mat;
+//! The linear solves inside Newton: a dense LU for small models, a sparse Cholesky with
+//! its symbolic analysis done once for large ones. Both factor in place into buffers
+//! allocated when the solver is built, so a Newton iteration allocates nothing.
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::linalg::lu::partial_pivoting::{factor as lu_factor, solve as lu_solve};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering};
+use faer::sparse::linalg::lu::{factorize_symbolic_lu, NumericLu, SymbolicLu};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, Mat, Par, Side};
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum LinearError {
-    /// Pivot `dof` of the LU factorization vanished relative to the largest one: the
-    /// structure has a mechanism (or is unstable) there.
-    #[error("singular tangent at free DOF {dof} (pivot ratio {ratio:.1e})")]
-    Singular { dof: usize, ratio: f64 },
+    /// Pivot of free DOF `dof` vanished relative to the largest one (the sparse LU does
+    /// not say which DOF: `None`, ratio 0).
+    #[error("singular tangent at free DOF {dof:?} (pivot ratio {ratio:.1e})")]
+    Singular { dof: Option<usize>, ratio: f64 },
+}
+
+/// Receives matrix entries (row, column, value), added to what is there.
+pub trait TangentSink {
+    fn add(&mut self, row: usize, col: usize, value: f64);
+}
+
+impl TangentSink for Mat<f64> {
+    fn add(&mut self, row: usize, col: usize, value: f64) {
+        self[(row, col)] += value;
+    }
+}
+
+/// A tangent matrix that is assembled, then factored and solved once per Newton iteration.
+pub trait TangentSolver: TangentSink + Send {
+    /// Zeroes the matrix for the next assembly.
+    fn clear(&mut self);
+    /// Solves K x = rhs in place (rhs becomes x); K is consumed (clear before reuse).
+    fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError>;
 }
 
 /// Relative pivot size below which a matrix is taken as singular: about 1e3 × machine ε,
@@ -14,22 +42,180 @@ pub enum LinearError {
 /// leaves pivots ~1e-9 relative).
 const SINGULAR_PIVOT: f64 = 1e-13;
 
-/// Solves `k · x = rhs` in place (rhs becomes x) with partial-pivoting LU. With row
-/// pivoting only, U's j-th pivot belongs to column j, i.e. to free DOF j, which is what a
-/// singularity report names.
-pub fn solve_dense(k: &Mat<f64>, rhs: &mut [f64]) -> Result<(), LinearError> {
-    let lu = k.partial_piv_lu();
-    let u = lu.U();
-    let n = u.nrows();
-    let max = (0..n).map(|j| u[(j, j)].abs()).fold(0.0, f64::max);
-    if let Some((dof, ratio)) = (0..n)
-        .map(|j| (j, u[(j, j)].abs() / max))
-        .filter(|&(_, r)| !(r > SINGULAR_PIVOT))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-    {
-        return Err(LinearError::Singular { dof, ratio });
+/// Dense partial-pivoting LU. With row pivoting only, U's j-th pivot belongs to column
+/// j, i.e. to free DOF j, which is what a singularity report names.
+pub struct DenseSolver {
+    k: Mat<f64>,
+    perm: Vec<usize>,
+    perm_inv: Vec<usize>,
+    mem: MemBuffer,
+}
+
+impl DenseSolver {
+    pub fn new(n: usize) -> Self {
+        let req = StackReq::any_of(&[
+            lu_factor::lu_in_place_scratch::<usize, f64>(n, n, Par::Seq, Default::default()),
+            lu_solve::solve_in_place_scratch::<usize, f64>(n, 1, Par::Seq),
+        ]);
+        DenseSolver {
+            k: Mat::zeros(n, n),
+            perm: vec![0; n],
+            perm_inv: vec![0; n],
+            mem: MemBuffer::new(req),
+        }
     }
-    let x = faer::ColMut::from_slice_mut(rhs);
-    lu.solve_in_place(x.as_mat_mut());
-    Ok(())
+}
+
+impl TangentSink for DenseSolver {
+    fn add(&mut self, row: usize, col: usize, value: f64) {
+        self.k[(row, col)] += value;
+    }
+}
+
+impl TangentSolver for DenseSolver {
+    fn clear(&mut self) {
+        self.k.fill(0.0);
+    }
+
+    fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
+        let n = self.k.nrows();
+        let stack = MemStack::new(&mut self.mem);
+        let (_, perm) = lu_factor::lu_in_place(
+            self.k.as_mut(),
+            &mut self.perm,
+            &mut self.perm_inv,
+            Par::Seq,
+            stack,
+            Default::default(),
+        );
+        let max = (0..n).map(|j| self.k[(j, j)].abs()).fold(0.0, f64::max);
+        if let Some((dof, ratio)) = (0..n)
+            .map(|j| (j, self.k[(j, j)].abs() / max))
+            .filter(|&(_, r)| !(r > SINGULAR_PIVOT))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+        {
+            return Err(LinearError::Singular { dof: Some(dof), ratio });
+        }
+        let x = faer::ColMut::from_slice_mut(rhs);
+        let stack = MemStack::new(&mut self.mem);
+        lu_solve::solve_in_place_with_conj(self.k.as_ref(), self.k.as_ref(), perm, Conj::No, x.as_mat_mut(), Par::Seq, stack);
+        Ok(())
+    }
+}
+
+/// Sparse Cholesky on a fixed pattern (the structure's connectivity): symbolic analysis
+/// (AMD ordering, elimination tree) once, numeric factorization per iteration into
+/// preallocated storage. The full symmetric pattern is stored; the Cholesky factorization
+/// reads its lower triangle. The Newmark step matrix M/(βΔt²) + … + K_T is positive
+/// definite unless the step is far too long, so the dynamic hot loop stays on Cholesky;
+/// a static solve through an unstable (indefinite) state, as in folding, falls back to a
+/// sparse LU whose symbolic analysis is likewise done once, on first need.
+pub struct SparseSolver {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<f64>,
+    symbolic: SymbolicCholesky<usize>,
+    l_values: Vec<f64>,
+    mem: MemBuffer,
+    lu: Option<(SymbolicLu<usize>, NumericLu<usize, f64>, MemBuffer)>,
+}
+
+impl SparseSolver {
+    /// `pattern`: every (row, column) that can receive an entry; both triangles.
+    pub fn new(n: usize, pattern: impl IntoIterator<Item = (usize, usize)>) -> Self {
+        let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (r, c) in pattern {
+            cols[c].push(r);
+        }
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        let mut row_idx = Vec::new();
+        col_ptr.push(0);
+        for (c, mut rows) in cols.into_iter().enumerate() {
+            rows.push(c);
+            rows.sort_unstable();
+            rows.dedup();
+            row_idx.extend(rows);
+            col_ptr.push(row_idx.len());
+        }
+        let structure = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+        let symbolic = factorize_symbolic_cholesky(structure, Side::Lower, SymmetricOrdering::Amd, Default::default())
+            .expect("symbolic Cholesky of a valid pattern");
+        let req = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+        ]);
+        let l_values = vec![0.0; symbolic.len_val()];
+        let values = vec![0.0; row_idx.len()];
+        SparseSolver {
+            col_ptr,
+            row_idx,
+            values,
+            symbolic,
+            l_values,
+            mem: MemBuffer::new(req),
+            lu: None,
+        }
+    }
+
+    /// Stored entries of the matrix.
+    pub fn nnz(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Entries of the Cholesky factor.
+    pub fn factor_nnz(&self) -> usize {
+        self.l_values.len()
+    }
+}
+
+impl TangentSink for SparseSolver {
+    fn add(&mut self, row: usize, col: usize, value: f64) {
+        let (lo, hi) = (self.col_ptr[col], self.col_ptr[col + 1]);
+        let k = self.row_idx[lo..hi].binary_search(&row).expect("entry inside the tangent pattern");
+        self.values[lo + k] += value;
+    }
+}
+
+impl TangentSolver for SparseSolver {
+    fn clear(&mut self) {
+        self.values.fill(0.0);
+    }
+
+    fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
+        let n = rhs.len();
+        let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let a = SparseColMatRef::new(structure, &self.values);
+        let stack = MemStack::new(&mut self.mem);
+        let llt = self.symbolic.factorize_numeric_llt(
+            &mut self.l_values,
+            a,
+            Side::Lower,
+            LltRegularization::default(),
+            Par::Seq,
+            stack,
+            Default::default(),
+        );
+        let x = faer::ColMut::from_slice_mut(rhs);
+        if let Ok(llt) = llt {
+            llt.solve_in_place_with_conj(Conj::No, x.as_mat_mut(), Par::Seq, MemStack::new(&mut self.mem));
+            return Ok(());
+        }
+        let (symbolic, numeric, mem) = self.lu.get_or_insert_with(|| {
+            let symbolic = factorize_symbolic_lu(structure, Default::default()).expect("symbolic LU of a valid pattern");
+            let req = StackReq::any_of(&[
+                symbolic.factorize_numeric_lu_scratch::<f64>(Par::Seq, Default::default()),
+                symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+            ]);
+            (symbolic, NumericLu::new(), MemBuffer::new(req))
+        });
+        let lu = symbolic
+            .factorize_numeric_lu(numeric, a, Par::Seq, MemStack::new(mem), Default::default())
+            .map_err(|_| LinearError::Singular { dof: None, ratio: 0.0 })?;
+        lu.solve_in_place_with_conj(Conj::No, x.as_mat_mut(), Par::Seq, MemStack::new(mem));
+        if rhs.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(LinearError::Singular { dof: None, ratio: 0.0 })
+        }
+    }
 }

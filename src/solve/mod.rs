@@ -4,5 +4,5 @@
 mod linear;
 mod newton;
 
-pub use linear::{solve_dense, LinearError};
-pub use newton::{newton, NewtonReport, NewtonSettings, Residual, Scale, SolveError};
+pub use linear::{DenseSolver, LinearError, SparseSolver, TangentSink, TangentSolver};
+pub use newton::{newton, LinearSolverChoice, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError};

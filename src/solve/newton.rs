@@ -1,5 +1,4 @@
-use super::linear::{solve_dense, LinearError};
-use faer::Mat;
+use super::linear::{DenseSolver, LinearError, SparseSolver, TangentSink, TangentSolver};
 
 /// Convergence settings of the Newton-Raphson driver (one struct for every stage).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -18,6 +17,48 @@ pub struct NewtonSettings {
     /// the first linearised steps overshoot wildly from a far start; capping them keeps
     /// form-finding on the equilibrium nearest its start. Default 0.05.
     pub max_step: f64,
+    /// Linear solver: `auto` (dense up to 600 free DOFs, sparse above), `dense` or `sparse`.
+    pub linear_solver: LinearSolverChoice,
+}
+
+/// Which linear solver Newton uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LinearSolverChoice {
+    /// Dense LU up to [`DENSE_LIMIT`] free DOFs (a 600×600 LU takes ~10 ms and is
+    /// faster than sparse bookkeeping on small models), sparse Cholesky above.
+    #[default]
+    Auto,
+    Dense,
+    Sparse,
+}
+
+/// Largest model (free DOFs) that `auto` solves densely.
+pub const DENSE_LIMIT: usize = 600;
+
+/// Buffers of the Newton driver: the residual, the tangent solver, the residual history.
+/// Built once per stage; a Newton iteration then allocates nothing.
+pub struct NewtonWorkspace {
+    r: Vec<f64>,
+    solver: Box<dyn TangentSolver>,
+    /// max|r| at each evaluation of the last solve, the first at the starting point [N].
+    pub history: Vec<f64>,
+}
+
+impl NewtonWorkspace {
+    /// `pattern` lists the (row, column) entries the tangent can have (used by the sparse solver).
+    pub fn new<P: IntoIterator<Item = (usize, usize)>>(n: usize, choice: LinearSolverChoice, pattern: impl FnOnce() -> P) -> Self {
+        let solver: Box<dyn TangentSolver> = match choice {
+            LinearSolverChoice::Dense => Box::new(DenseSolver::new(n)),
+            LinearSolverChoice::Auto if n <= DENSE_LIMIT => Box::new(DenseSolver::new(n)),
+            _ => Box::new(SparseSolver::new(n, pattern())),
+        };
+        NewtonWorkspace {
+            r: vec![0.0; n],
+            solver,
+            history: Vec::with_capacity(64),
+        }
+    }
 }
 
 impl Default for NewtonSettings {
@@ -27,6 +68,7 @@ impl Default for NewtonSettings {
             force_tolerance: 1e-10,
             displacement_tolerance: 1e-10,
             max_step: 0.05,
+            linear_solver: LinearSolverChoice::Auto,
         }
     }
 }
@@ -42,14 +84,14 @@ pub struct Scale {
 /// A nonlinear problem on the free DOFs: r(u) = external − internal (− inertia − damping)
 /// and its tangent K = −∂r/∂u.
 pub trait Residual {
-    fn evaluate(&mut self, u: &[f64], r: &mut [f64], k: &mut Mat<f64>) -> Scale;
+    fn evaluate(&mut self, u: &[f64], r: &mut [f64], k: &mut dyn TangentSink) -> Scale;
 }
 
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct NewtonReport {
     pub iterations: usize,
-    /// max |r| at each evaluation, the first at the starting point [N].
-    pub residuals: Vec<f64>,
+    /// max |r| at the converged point [N].
+    pub residual: f64,
 }
 
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -77,25 +119,25 @@ pub fn newton(
     settings: &NewtonSettings,
     length: f64,
     label: &dyn Fn(usize) -> String,
+    ws: &mut NewtonWorkspace,
 ) -> Result<NewtonReport, SolveError> {
-    let n = u.len();
-    let mut r = vec![0.0; n];
-    let mut k = Mat::zeros(n, n);
-    let mut report = NewtonReport::default();
     let mut increment = 0.0;
     let disp_tol = settings.displacement_tolerance * length;
+    ws.history.clear();
     for iteration in 0..=settings.max_iterations {
-        k.fill(0.0);
-        let scale = problem.evaluate(u, &mut r, &mut k);
-        let res = r.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
-        report.residuals.push(res);
+        ws.solver.clear();
+        let scale = problem.evaluate(u, &mut ws.r, &mut *ws.solver);
+        let res = ws.r.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        ws.history.push(res);
         if !res.is_finite() {
             return Err(SolveError::NonFinite { iteration });
         }
         let tolerance = settings.force_tolerance * scale.force + scale.roundoff;
         if res <= tolerance && (iteration == 0 || increment <= disp_tol) {
-            report.iterations = iteration;
-            return Ok(report);
+            return Ok(NewtonReport {
+                iterations: iteration,
+                residual: res,
+            });
         }
         if iteration == settings.max_iterations {
             return Err(SolveError::NotConverged {
@@ -105,10 +147,15 @@ pub fn newton(
                 increment,
             });
         }
-        solve_dense(&k, &mut r).map_err(|LinearError::Singular { dof, ratio }| SolveError::Singular { dof: label(dof), ratio })?;
-        increment = r.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        ws.solver
+            .solve(&mut ws.r)
+            .map_err(|LinearError::Singular { dof, ratio }| SolveError::Singular {
+                dof: dof.map_or_else(|| "a DOF the sparse LU does not name".to_string(), label),
+                ratio,
+            })?;
+        increment = ws.r.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
         let damping = (settings.max_step * length / increment).min(1.0);
-        for (ui, di) in u.iter_mut().zip(&r) {
+        for (ui, di) in u.iter_mut().zip(&ws.r) {
             *ui += damping * di;
         }
     }

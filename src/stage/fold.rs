@@ -7,7 +7,7 @@ use super::StaticEquilibrium;
 use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::record::{Energy, Frame, Recorder, Stage};
-use crate::solve::{newton, NewtonSettings, SolveError};
+use crate::solve::{newton, NewtonSettings, NewtonWorkspace, SolveError};
 use crate::tsm::{Assembly, DofMap, Elements};
 use nalgebra::Vector3;
 
@@ -52,6 +52,7 @@ struct FoldState<'a> {
     fraction: f64,
     /// Work done by the prescribed displacements (trapezoidal in the reactions).
     work: f64,
+    ws: NewtonWorkspace,
 }
 
 impl Folding {
@@ -71,6 +72,7 @@ impl Folding {
         let h0 = height(&x0);
         let asm = Assembly::new(model, elements, &dofs, x0);
         let u = asm.free_coordinates();
+        let ws = asm.workspace(self.newton.linear_solver);
         let mut st = FoldState {
             problem: StaticEquilibrium {
                 asm,
@@ -79,6 +81,7 @@ impl Folding {
             u,
             fraction: 0.0,
             work: 0.0,
+            ws,
         };
         let strain0 = elements.strain_energy(model, &st.problem.asm.x);
         let rec = |e: Box<dyn std::error::Error + Send + Sync>| Error::Stage {
@@ -154,7 +157,7 @@ impl Folding {
             st.problem.asm.x[n][a] = from + target * (to - from);
         }
         let length = st.problem.asm.model.size();
-        match newton(&mut st.problem, &mut st.u, &self.newton, length, label) {
+        match newton(&mut st.problem, &mut st.u, &self.newton, length, label, &mut st.ws) {
             Ok(report) => {
                 st.problem.asm.set_free(&st.u);
                 for (k, &(n, a, from, to)) in prescribed.dofs.iter().enumerate() {

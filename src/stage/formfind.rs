@@ -5,7 +5,7 @@
 use super::StaticEquilibrium;
 use crate::error::{Error, Result};
 use crate::model::Model;
-use crate::solve::{newton, NewtonReport, NewtonSettings};
+use crate::solve::{newton, NewtonSettings};
 use crate::tsm::{Assembly, DofMap, Elements};
 use nalgebra::Vector3;
 
@@ -14,7 +14,8 @@ pub struct Equilibrium {
     pub positions: Vec<Vector3<f64>>,
     pub forces: Vec<f64>,
     pub lengths: Vec<f64>,
-    pub report: NewtonReport,
+    /// max|r| at each Newton iteration, the first at the start [N].
+    pub residuals: Vec<f64>,
     /// Largest support reaction [N]: zero for a true self-equilibrium.
     pub max_reaction: f64,
 }
@@ -24,11 +25,12 @@ pub fn form_find(model: &Model, elements: &Elements, settings: &NewtonSettings) 
     let dofs = DofMap::new(model, &[]);
     let asm = Assembly::new(model, elements, &dofs, model.positions());
     let mut u = asm.free_coordinates();
+    let mut ws = asm.workspace(settings.linear_solver);
     let mut problem = StaticEquilibrium {
         asm,
         load: vec![0.0; dofs.len()],
     };
-    let report = newton(&mut problem, &mut u, settings, model.size(), &|d| dofs.label(model, d)).map_err(|source| Error::Solve {
+    newton(&mut problem, &mut u, settings, model.size(), &|d| dofs.label(model, d), &mut ws).map_err(|source| Error::Solve {
         stage: "form-finding",
         step: None,
         time: None,
@@ -44,7 +46,7 @@ pub fn form_find(model: &Model, elements: &Elements, settings: &NewtonSettings) 
         forces: asm.states.iter().map(|s| s.force).collect(),
         lengths: asm.states.iter().map(|s| s.length).collect(),
         positions: asm.x,
-        report,
+        residuals: ws.history,
         max_reaction,
     })
 }

@@ -1,6 +1,5 @@
-use crate::solve::{Residual, Scale};
+use crate::solve::{Residual, Scale, TangentSink};
 use crate::tsm::Assembly;
-use faer::Mat;
 
 /// Static nodal equilibrium r(u) = f_ext − p(u) with tangent K_T: the problem of
 /// form-finding and of every folding step.
@@ -11,7 +10,7 @@ pub struct StaticEquilibrium<'a> {
 }
 
 impl Residual for StaticEquilibrium<'_> {
-    fn evaluate(&mut self, u: &[f64], r: &mut [f64], k: &mut Mat<f64>) -> Scale {
+    fn evaluate(&mut self, u: &[f64], r: &mut [f64], k: &mut dyn TangentSink) -> Scale {
         self.asm.set_free(u);
         for (i, ri) in r.iter_mut().enumerate() {
             *ri = self.load[i] - self.asm.p_free(i);

@@ -81,7 +81,7 @@ impl Transient<'_> {
         let mut f0 = vec![0.0; n];
         load_free(0.0, &mut f0);
         let asm = Assembly::new(model, elements, &dofs, x0);
-        let mut nm = Newmark::new(asm, mass, vec![0.0; n], f0, self.params, self.rayleigh, self.tangent);
+        let mut nm = Newmark::new(asm, mass, vec![0.0; n], f0, self.params, self.rayleigh, self.tangent, &self.newton);
         let steps = (self.params.duration / self.params.dt).round() as usize;
         let load_end = self.load.map_or(0.0, |l| l.duration);
         let mut summary = TransientSummary {

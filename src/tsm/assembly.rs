@@ -1,7 +1,6 @@
 use super::{assemble_tangent, internal_force, member_states, DofMap, Elements, MemberState};
 use crate::model::Model;
-use crate::solve::Scale;
-use faer::Mat;
+use crate::solve::{Scale, TangentSink};
 use nalgebra::Vector3;
 
 /// A structure evaluated at one configuration: positions of every node (supported and
@@ -48,6 +47,11 @@ impl<'a> Assembly<'a> {
     }
 
     /// Free coordinates of the current `x`.
+    /// Workspace for Newton on this assembly's free DOFs, with the solver `choice` picks.
+    pub fn workspace(&self, choice: crate::solve::LinearSolverChoice) -> crate::solve::NewtonWorkspace {
+        crate::solve::NewtonWorkspace::new(self.dofs.len(), choice, || super::tangent_pattern(self.model, self.dofs))
+    }
+
     pub fn free_coordinates(&self) -> Vec<f64> {
         (0..self.dofs.len())
             .map(|i| {
@@ -58,7 +62,7 @@ impl<'a> Assembly<'a> {
     }
 
     /// Adds `factor`·K_T on the free DOFs.
-    pub fn add_tangent(&self, factor: f64, k: &mut Mat<f64>) {
+    pub fn add_tangent(&self, factor: f64, k: &mut (impl TangentSink + ?Sized)) {
         assemble_tangent(self.model, &self.states, self.dofs, factor, k);
     }
 

@@ -51,17 +51,7 @@ pub struct MemberState {
     pub stiffness: f64,
 }
 
-/// Receives tangent stiffness entries (free-DOF row, free-DOF column, value): a dense
-/// matrix or a sparse triplet list.
-pub trait TangentSink {
-    fn add(&mut self, row: usize, col: usize, value: f64);
-}
-
-impl TangentSink for faer::Mat<f64> {
-    fn add(&mut self, row: usize, col: usize, value: f64) {
-        self[(row, col)] += value;
-    }
-}
+pub use crate::solve::TangentSink;
 
 /// Evaluates every member at positions `x` into `states` (reused buffer).
 pub fn member_states(model: &Model, elements: &Elements, x: &[Vector3<f64>], states: &mut Vec<MemberState>) {
@@ -100,7 +90,7 @@ pub fn member_block(s: &MemberState) -> Matrix3<f64> {
 
 /// Adds K_T = K_G + K_0 over all members, on the free DOFs of `dofs`, scaled by `factor`
 /// (Newmark adds it next to mass and damping terms).
-pub fn assemble_tangent(model: &Model, states: &[MemberState], dofs: &DofMap, factor: f64, sink: &mut impl TangentSink) {
+pub fn assemble_tangent(model: &Model, states: &[MemberState], dofs: &DofMap, factor: f64, sink: &mut (impl TangentSink + ?Sized)) {
     for (mem, s) in model.members.iter().zip(states) {
         let k = member_block(s) * factor;
         let [a, b] = mem.nodes;
@@ -114,6 +104,38 @@ pub fn assemble_tangent(model: &Model, states: &[MemberState], dofs: &DofMap, fa
                         sink.add(row, col, sign * k[(r, c)]);
                     }
                 }
+            }
+        }
+    }
+}
+
+/// Every (row, column) of free DOFs that K_T can fill: the DOFs of each member's two
+/// nodes, pairwise. The sparse solver's pattern.
+pub fn tangent_pattern<'a>(model: &'a Model, dofs: &'a DofMap) -> impl Iterator<Item = (usize, usize)> + 'a {
+    model.members.iter().flat_map(move |mem| {
+        let free: Vec<usize> = mem
+            .nodes
+            .iter()
+            .flat_map(|&n| (0..3).filter_map(move |a| dofs.free(n, a)))
+            .collect();
+        free.iter().flat_map(|&r| free.iter().map(move |&c| (r, c))).collect::<Vec<_>>()
+    })
+}
+
+/// out += factor · K_T(states) · v on the free DOFs, member by member (no matrix): the
+/// βK part of Rayleigh damping.
+pub fn tangent_product(model: &Model, states: &[MemberState], dofs: &DofMap, v: &[f64], factor: f64, out: &mut [f64]) {
+    let value = |n: usize, a: usize| dofs.free(n, a).map_or(0.0, |i| v[i]);
+    for (mem, s) in model.members.iter().zip(states) {
+        let [a, b] = mem.nodes;
+        let rel = Vector3::new(value(b, 0) - value(a, 0), value(b, 1) - value(a, 1), value(b, 2) - value(a, 2));
+        let f = member_block(s) * rel * factor;
+        for ax in 0..3 {
+            if let Some(i) = dofs.free(a, ax) {
+                out[i] -= f[ax];
+            }
+            if let Some(i) = dofs.free(b, ax) {
+                out[i] += f[ax];
             }
         }
     }
