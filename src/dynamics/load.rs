@@ -1,3 +1,4 @@
+use crate::tsm::DofMap;
 use nalgebra::Vector3;
 
 /// Time profile of a load: the factor applied to its force at time t.
@@ -30,15 +31,17 @@ impl NodalLoad {
         }
     }
 
-    /// Adds the load at time t to a full 3n force vector.
-    pub fn add_to(&self, t: f64, f: &mut [f64]) {
+    /// Adds the load at time t to a force vector on the free DOFs of `dofs`.
+    pub fn add_free(&self, t: f64, dofs: &DofMap, f: &mut [f64]) {
         let s = self.factor(t);
         if s == 0.0 {
             return;
         }
         for &n in &self.nodes {
             for a in 0..3 {
-                f[3 * n + a] += s * self.force[a];
+                if let Some(i) = dofs.free(n, a) {
+                    f[i] += s * self.force[a];
+                }
             }
         }
     }

@@ -46,15 +46,6 @@ pub struct TransientSummary {
     pub final_positions: Vec<Vector3<f64>>,
 }
 
-fn expand(dofs: &DofMap, free: &[f64], n_nodes: usize) -> Vec<Vector3<f64>> {
-    let mut v = vec![Vector3::zeros(); n_nodes];
-    for (i, &x) in free.iter().enumerate() {
-        let (n, a) = dofs.owner(i);
-        v[n][a] = x;
-    }
-    v
-}
-
 impl Transient<'_> {
     /// Runs from positions `x0` at rest.
     pub fn run(
@@ -70,9 +61,7 @@ impl Transient<'_> {
         let load_free = |t: f64, f: &mut [f64]| {
             f.fill(0.0);
             if let Some(load) = self.load {
-                let mut full = vec![0.0; 3 * model.node_count()];
-                load.add_to(t, &mut full);
-                dofs.gather(&full, f);
+                load.add_free(t, &dofs, f);
             }
         };
         let mass = super::eigen::free_masses(&dofs, node_mass);
@@ -94,10 +83,17 @@ impl Transient<'_> {
         };
         recorder.begin_stage(self.stage).map_err(rec)?;
         let label = |d: usize| dofs.label(model, d);
-        let record = |nm: &Newmark, step: usize, recorder: &mut dyn Recorder| -> Result<()> {
-            let velocities = expand(&dofs, &nm.v, model.node_count());
-            let forces: Vec<f64> = nm.asm.states.iter().map(|s| s.force).collect();
-            let lengths: Vec<f64> = nm.asm.states.iter().map(|s| s.length).collect();
+        // Frame buffers, reused for every recorded step.
+        let (mut velocities, mut forces, mut lengths) = (vec![Vector3::zeros(); model.node_count()], Vec::new(), Vec::new());
+        let mut record = |nm: &Newmark, step: usize, recorder: &mut dyn Recorder| -> Result<()> {
+            for (i, &v) in nm.v.iter().enumerate() {
+                let (n, a) = dofs.owner(i);
+                velocities[n][a] = v;
+            }
+            forces.clear();
+            forces.extend(nm.asm.states.iter().map(|s| s.force));
+            lengths.clear();
+            lengths.extend(nm.asm.states.iter().map(|s| s.length));
             recorder
                 .frame(&Frame {
                     step,

@@ -50,11 +50,4 @@ impl DofMap {
         let (n, a) = self.owner[dof];
         format!("node `{}` direction {}", model.nodes[n].id, AXES[a])
     }
-
-    /// Copies the free entries of a full 3n vector.
-    pub fn gather(&self, full: &[f64], free: &mut [f64]) {
-        for (f, &(n, a)) in free.iter_mut().zip(&self.owner) {
-            *f = full[3 * n + a];
-        }
-    }
 }
