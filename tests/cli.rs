@@ -187,3 +187,24 @@ fn a_failing_case_does_not_stop_the_others() {
     }
     assert_eq!(o.iter().filter(|c| c["status"] == "complete").count(), 2);
 }
+
+/// `outputs.figures` runs the figures command on a finished case; without Python (here: a
+/// command that does not exist) the case still completes and the outcome says why.
+#[test]
+fn figures_are_optional() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good.split("sweep:").next().unwrap().to_string() + "outputs: { figures: true, hdf5: false, mcap: false }\n";
+    let dir = scratch("figures");
+    let path = dir.join("one.yaml");
+    std::fs::write(&path, text).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_tsim"))
+        .args(["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()])
+        .env("CI", "1")
+        .env("TSIM_FIGURES", dir.join("no-such-figures-command"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let outcome: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("small/small/outcome.json")).unwrap()).unwrap();
+    assert_eq!(outcome["status"], "complete");
+    assert!(outcome["figures"].as_str().unwrap().starts_with("not drawn"), "{outcome}");
+}

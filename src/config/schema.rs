@@ -255,6 +255,11 @@ pub struct OutputSpec {
     pub hdf5: bool,
     #[serde(default = "yes")]
     pub mcap: bool,
+    /// Draw the case's figures after it completes, with the figures script
+    /// (`scripts/figures`, or the command in `TSIM_FIGURES`). Needs Python; a failure
+    /// is noted in `outcome.json` and does not fail the case.
+    #[serde(default)]
+    pub figures: bool,
 }
 
 fn one_usize() -> usize {
@@ -270,6 +275,7 @@ impl Default for OutputSpec {
             every: 1,
             hdf5: true,
             mcap: true,
+            figures: false,
         }
     }
 }

@@ -33,6 +33,9 @@ pub struct CaseOutcome {
     pub status: String,
     pub wall_seconds: f64,
     pub summary: Option<CaseSummary>,
+    /// With `outputs.figures`: "written" or why not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub figures: Option<String>,
 }
 
 impl CaseOutcome {
@@ -96,6 +99,7 @@ fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
         status: "skipped (complete)".into(),
         wall_seconds: outcome["wall_seconds"].as_f64().unwrap_or_default(),
         summary: serde_json::from_value(outcome["summary"].clone()).ok(),
+        figures: outcome["figures"].as_str().map(str::to_string),
     })
 }
 
@@ -113,6 +117,7 @@ fn run_one(case: &Case, dir: &Path, force: bool, progress: &Progress) -> CaseOut
         Ok(s) => ("complete".to_string(), Some(s)),
         Err(reason) => (format!("failed: {reason}"), None),
     };
+    let figures = (case.config.outputs.figures && summary.is_some()).then(|| draw_figures(dir));
     progress.done(&case.id, &status, wall_seconds);
     let outcome = CaseOutcome {
         id: case.id.clone(),
@@ -120,12 +125,35 @@ fn run_one(case: &Case, dir: &Path, force: bool, progress: &Progress) -> CaseOut
         status,
         wall_seconds,
         summary,
+        figures,
     };
     if let Ok(text) = serde_json::to_string_pretty(&outcome) {
         // Written last: its presence with "complete" is what marks the case done.
         let _ = std::fs::write(dir.join("outcome.json"), text);
     }
     outcome
+}
+
+/// Runs the figures script on a finished case directory: `TSIM_FIGURES` if set, else
+/// `scripts/figures` of the working directory. Python is optional for tsim, so a missing
+/// script or a failure is reported, never fatal.
+fn draw_figures(dir: &Path) -> String {
+    let script = std::env::var_os("TSIM_FIGURES").map_or_else(|| PathBuf::from("scripts/figures"), PathBuf::from);
+    match std::process::Command::new(&script)
+        .arg(dir)
+        .stdout(std::process::Stdio::null())
+        .output()
+    {
+        Ok(out) if out.status.success() => "written".into(),
+        Ok(out) => format!(
+            "failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+                .lines()
+                .last()
+                .unwrap_or("figures script failed")
+        ),
+        Err(e) => format!("not drawn: cannot run {}: {e}", script.display()),
+    }
 }
 
 /// Runs one case with its recorders; any error or panic becomes the failure reason.
