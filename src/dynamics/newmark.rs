@@ -1,7 +1,7 @@
 use super::Rayleigh;
 use crate::record::Energy;
 use crate::solve::{newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
-use crate::tsm::{assemble_tangent, tangent_product, Assembly, MemberState};
+use crate::tsm::{assemble_tangents, tangent_product, Assembly, MemberState};
 
 /// Newmark-β integration parameters.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -288,8 +288,12 @@ impl Residual for StepProblem<'_, '_> {
         }
         let (alpha_r, beta_r) = (nm.rayleigh.alpha, nm.rayleigh.beta);
         // Jacobian: K_T + β_R c_v K_damp, then M (c_a + α_R c_v) on the diagonal below.
-        nm.asm.add_tangent(1.0, k);
-        assemble_tangent(nm.asm.model, nm.damping_states(), nm.asm.dofs, beta_r * c_v, k);
+        assemble_tangents(
+            nm.asm.model,
+            nm.asm.dofs,
+            &[(&nm.asm.states, 1.0), (nm.damping_states(), beta_r * c_v)],
+            k,
+        );
         let mut fd = std::mem::take(&mut nm.fd_next);
         damping_force(&nm.asm, &nm.rayleigh, &nm.mass, nm.damping_states(), &nm.v_next, &mut fd);
         let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);

@@ -12,10 +12,9 @@ pub struct OgdenTerm {
 pub fn ogden_nominal_stress(terms: &[OgdenTerm], lambda: f64) -> (f64, f64) {
     terms.iter().fold((0.0, 0.0), |(f, df), t| {
         let a = t.alpha;
-        (
-            f + t.mu * (lambda.powf(a - 1.0) - lambda.powf(-1.0 - a / 2.0)),
-            df + t.mu * ((a - 1.0) * lambda.powf(a - 2.0) + (1.0 + a / 2.0) * lambda.powf(-2.0 - a / 2.0)),
-        )
+        // Two powers per term; the slope's powers are these over λ.
+        let (p, q) = (lambda.powf(a - 1.0), lambda.powf(-1.0 - a / 2.0));
+        (f + t.mu * (p - q), df + t.mu * ((a - 1.0) * p + (1.0 + a / 2.0) * q) / lambda)
     })
 }
 

@@ -21,6 +21,19 @@ pub enum LinearError {
 /// Receives matrix entries (row, column, value), added to what is there.
 pub trait TangentSink {
     fn add(&mut self, row: usize, col: usize, value: f64);
+
+    /// Adds a 6×6 element block on the DOFs `free` (`None`: not a free DOF). Element `e`
+    /// must always come with the same DOFs, so a sink may cache where its entries go.
+    fn add_element(&mut self, _e: usize, free: &[Option<usize>; 6], block: &[[f64; 6]; 6]) {
+        for (r, row) in free.iter().enumerate() {
+            let Some(row) = *row else { continue };
+            for (c, col) in free.iter().enumerate() {
+                if let Some(col) = *col {
+                    self.add(row, col, block[r][c]);
+                }
+            }
+        }
+    }
 }
 
 impl TangentSink for Mat<f64> {
@@ -118,6 +131,9 @@ pub struct SparseSolver {
     l_values: Vec<f64>,
     mem: MemBuffer,
     lu: Option<(SymbolicLu<usize>, NumericLu<usize, f64>, MemBuffer)>,
+    /// Per element, the value slot of each of its 36 block entries (`u32::MAX`: not
+    /// free), found once by binary search so that assembly is a direct scatter.
+    slots: Vec<Option<[u32; 36]>>,
 }
 
 impl SparseSolver {
@@ -154,6 +170,7 @@ impl SparseSolver {
             l_values,
             mem: MemBuffer::new(req),
             lu: None,
+            slots: Vec::new(),
         }
     }
 
@@ -168,11 +185,39 @@ impl SparseSolver {
     }
 }
 
+impl SparseSolver {
+    fn slot(&self, row: usize, col: usize) -> usize {
+        let (lo, hi) = (self.col_ptr[col], self.col_ptr[col + 1]);
+        lo + self.row_idx[lo..hi].binary_search(&row).expect("entry inside the tangent pattern")
+    }
+}
+
 impl TangentSink for SparseSolver {
     fn add(&mut self, row: usize, col: usize, value: f64) {
-        let (lo, hi) = (self.col_ptr[col], self.col_ptr[col + 1]);
-        let k = self.row_idx[lo..hi].binary_search(&row).expect("entry inside the tangent pattern");
-        self.values[lo + k] += value;
+        let k = self.slot(row, col);
+        self.values[k] += value;
+    }
+
+    fn add_element(&mut self, e: usize, free: &[Option<usize>; 6], block: &[[f64; 6]; 6]) {
+        if e >= self.slots.len() {
+            self.slots.resize(e + 1, None);
+        }
+        let slots = match self.slots[e] {
+            Some(slots) => slots,
+            None => {
+                let slots = std::array::from_fn(|k| match (free[k / 6], free[k % 6]) {
+                    (Some(row), Some(col)) => self.slot(row, col) as u32,
+                    _ => u32::MAX,
+                });
+                self.slots[e] = Some(slots);
+                slots
+            }
+        };
+        for (k, &slot) in slots.iter().enumerate() {
+            if slot != u32::MAX {
+                self.values[slot as usize] += block[k / 6][k % 6];
+            }
+        }
     }
 }
 

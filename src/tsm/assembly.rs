@@ -72,13 +72,21 @@ impl<'a> Assembly<'a> {
         self.p[3 * n + a]
     }
 
-    /// Force level and round-off floor of the current state. The floor is what an ulp
-    /// of length does to the stiffest member: 64 ε (|dN/dl|·l + |N|), 64 leaving room
-    /// for the summation over a node's members.
+    /// Force level and round-off floor of the current state. The floor is what one ulp
+    /// of a coordinate does through the stiffest member: a length is a difference of
+    /// coordinates, so its round-off is ε·max(|x_i|, |x_j|, l), not ε·l (it grows with
+    /// the distance from the origin, e.g. up a tall tower). 64 ε (|dN/dl|·that + |N|),
+    /// 64 leaving room for the summation over a node's members.
     pub fn scale(&self, applied: f64) -> Scale {
-        let (force, stiff) = self.states.iter().fold((applied, 0.0_f64), |(f, s), m| {
-            (f.max(m.force.abs()), s.max(m.stiffness.abs() * m.length + m.force.abs()))
-        });
+        let (force, stiff) = self
+            .model
+            .members
+            .iter()
+            .zip(&self.states)
+            .fold((applied, 0.0_f64), |(f, s), (mem, m)| {
+                let reach = self.x[mem.nodes[0]].amax().max(self.x[mem.nodes[1]].amax()).max(m.length);
+                (f.max(m.force.abs()), s.max(m.stiffness.abs() * reach + m.force.abs()))
+            });
         Scale {
             force,
             roundoff: 64.0 * f64::EPSILON * stiff,

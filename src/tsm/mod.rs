@@ -88,24 +88,31 @@ pub fn member_block(s: &MemberState) -> Matrix3<f64> {
     (Matrix3::identity() - jj) * (s.force / s.length) + jj * s.stiffness
 }
 
-/// Adds K_T = K_G + K_0 over all members, on the free DOFs of `dofs`, scaled by `factor`
-/// (Newmark adds it next to mass and damping terms).
+/// Adds K_T = K_G + K_0 over all members, on the free DOFs of `dofs`, scaled by `factor`.
 pub fn assemble_tangent(model: &Model, states: &[MemberState], dofs: &DofMap, factor: f64, sink: &mut (impl TangentSink + ?Sized)) {
-    for (mem, s) in model.members.iter().zip(states) {
-        let k = member_block(s) * factor;
+    assemble_tangents(model, dofs, &[(states, factor)], sink);
+}
+
+/// Adds Σ factor_t · K_T(states_t) in one pass over the members (Newmark adds the
+/// current tangent and the βK damping tangent of another state together).
+pub fn assemble_tangents(model: &Model, dofs: &DofMap, terms: &[(&[MemberState], f64)], sink: &mut (impl TangentSink + ?Sized)) {
+    for (e, mem) in model.members.iter().enumerate() {
+        let k = terms
+            .iter()
+            .fold(Matrix3::zeros(), |k, (states, factor)| k + member_block(&states[e]) * *factor);
         let [a, b] = mem.nodes;
-        for (na, nb, sign) in [(a, a, 1.0), (b, b, 1.0), (a, b, -1.0), (b, a, -1.0)] {
-            for r in 0..3 {
-                let Some(row) = dofs.free(na, r) else {
-                    continue;
-                };
-                for c in 0..3 {
-                    if let Some(col) = dofs.free(nb, c) {
-                        sink.add(row, col, sign * k[(r, c)]);
-                    }
+        let free = [0, 1, 2, 3, 4, 5].map(|i| dofs.free(if i < 3 { a } else { b }, i % 3));
+        // [[k, −k], [−k, k]]
+        let block = std::array::from_fn(|r| {
+            std::array::from_fn(|c| {
+                if (r < 3) == (c < 3) {
+                    k[(r % 3, c % 3)]
+                } else {
+                    -k[(r % 3, c % 3)]
                 }
-            }
-        }
+            })
+        });
+        sink.add_element(e, &free, &block);
     }
 }
 
