@@ -8,8 +8,10 @@
 //! - at step s: position = initial + 1e-3 s (every component), velocity = s, member length =
 //!   1 + s, energies kinetic 0.5 s, strain 100 − 0.5 s, damping 0.01 s, external 0.02 s.
 //!
-//! Usage: `write_sample OUTDIR [--every N] [--slow]`. `--slow` runs 3000 free-vibration steps
-//! at 2 ms each (about 6 s) so that a reader can watch the file grow or the process be killed.
+//! Usage: `write_sample OUTDIR [--every N] [--slow]`. `--every N` records, as the stages do
+//! for `outputs.every`, the steps with `step % N == 0` and the last. `--slow` runs 3000
+//! free-vibration steps at 2 ms each (about 6 s) so that a reader can watch the file grow or
+//! the process be killed. The recorders run as in `tsim run`: each on a background thread.
 
 use nalgebra::Vector3;
 use std::path::PathBuf;
@@ -17,7 +19,7 @@ use tsim::model::generate::TowerSpec;
 use tsim::model::MemberKind;
 use tsim::record::h5::Hdf5Recorder;
 use tsim::record::replay::McapRecorder;
-use tsim::record::{EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Recorder, Stage};
+use tsim::record::{Background, EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Recorder, Stage};
 
 type Result<T> = std::result::Result<T, Box<dyn std::error::Error + Send + Sync>>;
 
@@ -33,8 +35,12 @@ fn main() -> Result<()> {
     }
     let out = out.ok_or("usage: write_sample OUTDIR [--every N] [--slow]")?;
     std::fs::create_dir_all(&out)?;
-    let mut h5 = Hdf5Recorder::create(&out.join("result.h5"), "sample", "case: sample\n", every)?;
-    let mut mcap = McapRecorder::create(&out.join("replay.mcap"), "sample", every)?;
+    if every == 0 {
+        return Err("--every must be at least 1".into());
+    }
+    let h5 = Hdf5Recorder::create(&out.join("result.h5"), "sample", "case: sample\n")?;
+    let mcap = McapRecorder::create(&out.join("replay.mcap"), "sample")?;
+    let (mut h5, mut mcap) = (Background::new(h5, "hdf5"), Background::new(mcap, "mcap"));
     let mut recorders: [&mut dyn Recorder; 2] = [&mut h5, &mut mcap];
     let mut each = |f: &mut dyn FnMut(&mut dyn Recorder) -> tsim::record::RecordResult| recorders.iter_mut().try_for_each(|r| f(&mut **r));
 
@@ -80,6 +86,12 @@ fn main() -> Result<()> {
         };
         each(&mut |r| r.begin_stage(stage))?;
         for step in 0..=steps {
+            if slow && stage == Stage::FreeVibration {
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            }
+            if step % every != 0 && step != steps {
+                continue;
+            }
             let s = step as f64;
             let positions: Vec<_> = x0.iter().map(|p| p + Vector3::repeat(1e-3 * s)).collect();
             let velocities = vec![Vector3::repeat(s); n];
@@ -99,9 +111,6 @@ fn main() -> Result<()> {
                 },
             };
             each(&mut |r| r.frame(&frame))?;
-            if slow && stage == Stage::FreeVibration {
-                std::thread::sleep(std::time::Duration::from_millis(2));
-            }
         }
         each(&mut |r| r.end_stage(stage))?;
     }

@@ -1,3 +1,4 @@
+use super::background::Background;
 use super::{EigenRecord, FormFindRecord, Frame, ModelRecord, RecordResult, Recorder, Stage};
 use crate::config::OutputSpec;
 use std::path::Path;
@@ -31,7 +32,9 @@ impl Recorder for Recorders {
     }
 }
 
-/// The file recorders a case's `outputs` asks for: `result.h5` and `replay.mcap` in `dir`.
+/// The file recorders a case's `outputs` asks for: `result.h5` and `replay.mcap` in `dir`,
+/// each streaming on a thread of its own. `outputs.every` is not theirs to apply: the stages
+/// call `frame` only for the steps to record.
 pub fn file_recorders(
     outputs: &OutputSpec,
     dir: &Path,
@@ -40,19 +43,12 @@ pub fn file_recorders(
 ) -> Result<Vec<Box<dyn Recorder>>, Box<dyn std::error::Error + Send + Sync>> {
     let mut out: Vec<Box<dyn Recorder>> = Vec::new();
     if outputs.hdf5 {
-        out.push(Box::new(super::h5::Hdf5Recorder::create(
-            &dir.join("result.h5"),
-            case_id,
-            config_yaml,
-            outputs.every,
-        )?));
+        let h5 = super::h5::Hdf5Recorder::create(&dir.join("result.h5"), case_id, config_yaml)?;
+        out.push(Box::new(Background::new(h5, "tsim-hdf5")));
     }
     if outputs.mcap {
-        out.push(Box::new(super::replay::McapRecorder::create(
-            &dir.join("replay.mcap"),
-            case_id,
-            outputs.every,
-        )?));
+        let mcap = super::replay::McapRecorder::create(&dir.join("replay.mcap"), case_id)?;
+        out.push(Box::new(Background::new(mcap, "tsim-mcap")));
     }
     Ok(out)
 }

@@ -65,7 +65,6 @@ pub struct Hdf5Recorder {
 
 struct Open {
     file: File,
-    stride: Stride,
     node_ids: Vec<String>,
     member_ids: Vec<String>,
     /// Free vibration, folding, deployment; created by `model`.
@@ -75,9 +74,10 @@ struct Open {
 }
 
 impl Hdf5Recorder {
-    /// Creates (truncates) `path`. `every` is the output stride: a time-stepping stage records
-    /// the steps with `step % every == 0` and always its last step.
-    pub fn create(path: &Path, case_id: &str, config_yaml: &str, every: usize) -> Result<Self, Error> {
+    /// Creates (truncates) `path` and marks it "running". Every frame given is recorded: the
+    /// output stride (`outputs.every`) is applied by the stages, which call `frame` only for
+    /// the steps to record.
+    pub fn create(path: &Path, case_id: &str, config_yaml: &str) -> Result<Self, Error> {
         let file = File::with_options().with_fapl(|p| p.libver_v110()).create(path)?;
         str_attr(&file, "tsim_version", env!("CARGO_PKG_VERSION"))?;
         str_attr(&file, "case_id", case_id)?;
@@ -86,7 +86,6 @@ impl Hdf5Recorder {
         file.new_attr::<FixedUnicode<STATUS_LEN>>().create("status")?;
         let open = Open {
             file,
-            stride: Stride::new(every)?,
             node_ids: Vec::new(),
             member_ids: Vec::new(),
             series: Vec::new(),
@@ -127,11 +126,8 @@ impl Open {
         Ok(&mut self.series[i].1)
     }
 
-    /// Records the held-back last frame, writes the partial block and flushes.
+    /// Writes the partial block and flushes.
     fn close_stage(&mut self) -> Result<(), Error> {
-        if let Some(last) = self.stride.take_held() {
-            self.series()?.push(&last.as_frame())?;
-        }
         self.series()?.write_block()?;
         self.current = None;
         Ok(self.file.flush()?)
@@ -275,7 +271,7 @@ impl Recorder for Hdf5Recorder {
 
     fn frame(&mut self, frame: &Frame) -> RecordResult {
         let open = self.open()?;
-        if open.stride.keep(frame) && open.series()?.push(frame)? {
+        if open.series()?.push(frame)? {
             open.file.flush()?;
         }
         Ok(())
@@ -560,87 +556,6 @@ fn flat(v: &[Vector3<f64>]) -> Vec<f64> {
     v.iter().flat_map(|p| p.iter().copied()).collect()
 }
 
-/// The output stride, shared with the MCAP recorder: keeps the frames with
-/// `step % every == 0` and holds back a copy of the latest other frame, so that a stage's
-/// last state is still recorded at `end_stage` when it falls between strides.
-pub(super) struct Stride {
-    every: usize,
-    held: OwnedFrame,
-    holding: bool,
-}
-
-impl Stride {
-    pub(super) fn new(every: usize) -> Result<Self, Error> {
-        if every == 0 {
-            return Err("output stride `every` must be at least 1".into());
-        }
-        Ok(Stride {
-            every,
-            held: OwnedFrame::default(),
-            holding: false,
-        })
-    }
-
-    /// Whether to record `frame` now; if not, it is held back.
-    pub(super) fn keep(&mut self, frame: &Frame) -> bool {
-        self.holding = frame.step % self.every != 0;
-        if self.holding {
-            self.held.copy_from(frame);
-        }
-        !self.holding
-    }
-
-    /// The last frame given, if it was held back; called at the end of a stage.
-    pub(super) fn take_held(&mut self) -> Option<OwnedFrame> {
-        std::mem::take(&mut self.holding).then(|| std::mem::take(&mut self.held))
-    }
-}
-
-/// A [`Frame`] that owns its data.
-#[derive(Default)]
-pub(super) struct OwnedFrame {
-    step: usize,
-    time: f64,
-    positions: Vec<Vector3<f64>>,
-    velocities: Option<Vec<Vector3<f64>>>,
-    forces: Vec<f64>,
-    lengths: Vec<f64>,
-    energy: super::Energy,
-}
-
-impl OwnedFrame {
-    /// Copies `f` reusing this frame's allocations.
-    fn copy_from(&mut self, f: &Frame) {
-        self.step = f.step;
-        self.time = f.time;
-        self.energy = f.energy;
-        refill(&mut self.positions, f.positions);
-        match f.velocities {
-            Some(v) => refill(self.velocities.get_or_insert_with(Vec::new), v),
-            None => self.velocities = None,
-        }
-        refill(&mut self.forces, f.forces);
-        refill(&mut self.lengths, f.lengths);
-    }
-
-    pub(super) fn as_frame(&self) -> Frame<'_> {
-        Frame {
-            step: self.step,
-            time: self.time,
-            positions: &self.positions,
-            velocities: self.velocities.as_deref(),
-            forces: &self.forces,
-            lengths: &self.lengths,
-            energy: self.energy,
-        }
-    }
-}
-
-fn refill<T: Copy>(v: &mut Vec<T>, src: &[T]) {
-    v.clear();
-    v.extend_from_slice(src);
-}
-
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
@@ -654,10 +569,11 @@ pub(super) mod tests {
         dir.join(name)
     }
 
-    /// Drives `rec` through every stage of a synthetic case: form-finding, eigen, then
-    /// `steps` + 1 frames (steps 0..=steps) of free vibration (dt 0.01 s), folding and
-    /// deployment. Energies are (step, 2 step, 3 step, 4 step).
-    pub(in crate::record) fn drive(rec: &mut dyn Recorder, model: &Model, steps: usize) -> RecordResult {
+    /// Drives `rec` through every stage of a synthetic case: form-finding, eigen, then steps
+    /// 0..=steps of free vibration (dt 0.01 s), folding and deployment, of which, like the
+    /// stages, it records those with `step % every == 0` and the last. Energies are (step,
+    /// 2 step, 3 step, 4 step).
+    pub(in crate::record) fn drive(rec: &mut dyn Recorder, model: &Model, steps: usize, every: usize) -> RecordResult {
         let (n, m) = (model.node_count(), model.members.len());
         let x0 = model.positions();
         rec.model(&ModelRecord {
@@ -686,7 +602,7 @@ pub(super) mod tests {
         })?;
         for stage in [Stage::FreeVibration, Stage::Folding, Stage::Deployment] {
             rec.begin_stage(stage)?;
-            for step in 0..=steps {
+            for step in (0..=steps).filter(|s| s % every == 0 || *s == steps) {
                 let s = step as f64;
                 let positions: Vec<_> = x0.iter().map(|p| p + Vector3::repeat(1e-3 * s)).collect();
                 let velocities = vec![Vector3::repeat(s); n];
@@ -714,7 +630,7 @@ pub(super) mod tests {
         Ok(())
     }
 
-    fn status(path: &Path) -> String {
+    pub(in crate::record) fn status(path: &Path) -> String {
         let file = File::open(path).unwrap();
         file.attr("status")
             .unwrap()
@@ -725,7 +641,7 @@ pub(super) mod tests {
     }
 
     #[test]
-    fn writes_the_layout_with_stride_and_status() {
+    fn writes_the_layout_and_status() {
         let model = TowerSpec {
             struts: 3,
             stages: 1,
@@ -733,9 +649,9 @@ pub(super) mod tests {
         }
         .build();
         let path = temp_path("layout.h5");
-        let mut rec = Hdf5Recorder::create(&path, "case-7", "a: 1\n", 3).unwrap();
+        let mut rec = Hdf5Recorder::create(&path, "case-7", "a: 1\n").unwrap();
         // Stride 3 over steps 0..=10: the last step is not a multiple of 3.
-        drive(&mut rec, &model, 10).unwrap();
+        drive(&mut rec, &model, 10, 3).unwrap();
         assert_eq!(status(&path), "running");
         rec.finish("complete").unwrap();
         assert_eq!(status(&path), "complete");
@@ -807,8 +723,8 @@ pub(super) mod tests {
         }
         .build();
         let path = temp_path("chunks.h5");
-        let mut rec = Hdf5Recorder::create(&path, "c", "", 1).unwrap();
-        drive(&mut rec, &model, 600).unwrap();
+        let mut rec = Hdf5Recorder::create(&path, "c", "").unwrap();
+        drive(&mut rec, &model, 600, 1).unwrap();
         let reason = format!("failed: {}", "é".repeat(400));
         rec.finish(&reason).unwrap();
         let file = File::open(&path).unwrap();
@@ -832,7 +748,7 @@ pub(super) mod tests {
         }
         .build();
         let path = temp_path("dropped.h5");
-        let mut rec = Hdf5Recorder::create(&path, "c", "", 1).unwrap();
+        let mut rec = Hdf5Recorder::create(&path, "c", "").unwrap();
         rec.model(&ModelRecord {
             model: &model,
             rest_lengths: &[1.0; 12],
@@ -842,6 +758,5 @@ pub(super) mod tests {
         rec.begin_stage(Stage::FreeVibration).unwrap();
         drop(rec);
         assert_eq!(status(&path), "failed: recorder dropped before finish");
-        assert!(Hdf5Recorder::create(&path, "c", "", 0).is_err());
     }
 }

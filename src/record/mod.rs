@@ -2,10 +2,12 @@
 //! never with a Newton trial (OpenSees' commit-then-record). Each output format is one
 //! implementation of [`Recorder`]; [`Recorders`] fans out to several.
 
+mod background;
 mod fanout;
 pub mod h5;
 pub mod replay;
 
+pub use background::Background;
 pub use fanout::{file_recorders, Recorders};
 
 use crate::model::Model;

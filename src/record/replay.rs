@@ -23,13 +23,14 @@
 //!   load step (log time = stage start + step × `STATIC_STEP`, the applied fraction being in
 //!   the HDF5 output);
 //! - a dynamic stage logs its frame at stage start + frame time;
-//! - each stage starts one step after the previous one's last step, a step being that
-//!   stage's last time increment (`STATIC_STEP` for static stages).
+//! - each stage starts one step after the previous one's last step, a step being the
+//!   increment between that stage's last two recorded frames (its time step, times the
+//!   output stride `every` unless the last step falls between strides; `STATIC_STEP` for
+//!   static stages).
 //!
 //! Log times are strictly increasing on every topic: a computed time that does not exceed
 //! the previous one is moved 1 ns past it.
 
-use super::h5::Stride;
 use super::{Energy, FormFindRecord, Frame, ModelRecord, RecordResult, Recorder, Stage};
 use crate::model::MemberKind;
 use foxglove::messages::{line_primitive, Color, LinePrimitive, Point3, SceneEntity, SceneUpdate, Timestamp};
@@ -89,7 +90,7 @@ mod msg {
         pub force: f64,
     }
 
-    #[derive(foxglove::Encode)]
+    #[derive(foxglove::Encode, Default)]
     pub struct MemberForces {
         pub stage: String,
         pub step: u64,
@@ -107,9 +108,13 @@ pub struct McapRecorder {
     /// `None` once finished.
     writer: Option<mcap::Writer<BufWriter<File>>>,
     channels: Channels,
-    stride: Stride,
     clock: Clock,
-    members: Vec<(String, [usize; 2], MemberKind)>,
+    /// Ends and kind of each member.
+    members: Vec<([usize; 2], MemberKind)>,
+    /// The `/tsim/members` message, kept between steps: ids are set once, forces per step.
+    member_forces: msg::MemberForces,
+    /// Point buffers of the scene's lines, one per (kind, state), reused between steps.
+    points: [Vec<Point3>; 6],
     stage: Option<Stage>,
     buf: Vec<u8>,
 }
@@ -122,14 +127,16 @@ struct Channels {
 }
 
 impl McapRecorder {
-    /// Creates (truncates) `path`. `every` is the output stride, as for HDF5: a time-stepping
-    /// stage records the steps with `step % every == 0` and always its last step.
-    pub fn create(path: &Path, case_id: &str, every: usize) -> Result<Self, Error> {
+    /// Creates (truncates) `path`. Every frame given is logged: the output stride is applied
+    /// by the stages.
+    pub fn create(path: &Path, case_id: &str) -> Result<Self, Error> {
         // zstd level 1: level 3 (the default) spent 5 % of the paper case in compression for
-        // files 2 % smaller.
+        // files 2 % smaller. Single-threaded: the recorder has a thread of its own (see
+        // `Background`), and zstd's own workers would compete with the solver.
         let options = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
-            .compression_level(1);
+            .compression_level(1)
+            .compression_threads(0);
         let mut writer = options.create(BufWriter::new(File::create(path)?))?;
         let channels = Channels {
             scene: channel::<SceneUpdate>(&mut writer, "/tsim/scene")?,
@@ -148,9 +155,14 @@ impl McapRecorder {
         Ok(McapRecorder {
             writer: Some(writer),
             channels,
-            stride: Stride::new(every)?,
             clock: Clock::default(),
             members: Vec::new(),
+            member_forces: msg::MemberForces {
+                stage: String::new(),
+                step: 0,
+                members: Vec::new(),
+            },
+            points: Default::default(),
             stage: None,
             buf: Vec::new(),
         })
@@ -186,26 +198,22 @@ impl McapRecorder {
     ) -> Result<(), Error> {
         let scene = self.scene(ns, positions, forces);
         self.log(self.channels.scene, ns, &scene)?;
-        let members = self
-            .members
-            .iter()
-            .zip(forces)
-            .map(|((id, _, _), &force)| msg::MemberForce { id: id.clone(), force })
-            .collect();
-        let stage_name = stage.name().to_string();
-        self.log(
-            self.channels.members,
-            ns,
-            &msg::MemberForces {
-                stage: stage_name.clone(),
-                step: step as u64,
-                members,
-            },
-        )?;
+        self.reclaim(scene);
+        let mut members = std::mem::take(&mut self.member_forces);
+        if members.stage != stage.name() {
+            members.stage = stage.name().into();
+        }
+        members.step = step as u64;
+        for (m, &force) in members.members.iter_mut().zip(forces) {
+            m.force = force;
+        }
+        let logged = self.log(self.channels.members, ns, &members);
+        self.member_forces = members;
+        logged?;
         if let Some(e) = energy {
             let total = e.kinetic + e.strain + e.damping - e.external;
             let energy = msg::Energy {
-                stage: stage_name,
+                stage: stage.name().into(),
                 step: step as u64,
                 kinetic: e.kinetic,
                 strain: e.strain,
@@ -219,42 +227,37 @@ impl McapRecorder {
     }
 
     /// One `LINE_LIST` per (kind, state) present, each of one colour: half the size of
-    /// per-vertex colours.
-    fn scene(&self, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) -> SceneUpdate {
+    /// per-vertex colours. The point buffers come from `self.points`; give the scene back to
+    /// [`McapRecorder::reclaim`] once encoded.
+    fn scene(&mut self, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) -> SceneUpdate {
         let eps = SLACK_FRACTION * forces.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
-        let state = |kind: MemberKind, force: f64| {
-            if force.abs() <= eps || (kind == MemberKind::Cable && force < 0.0) {
-                GREY
+        // Bucket = 3 × kind (strut 0, cable 1) + state (brown 0, red 1, grey 2).
+        for ((ends, kind), &force) in self.members.iter().zip(forces) {
+            let state = if force.abs() <= eps || (*kind == MemberKind::Cable && force < 0.0) {
+                2
             } else if force < 0.0 {
-                BROWN
+                0
             } else {
-                RED
-            }
-        };
+                1
+            };
+            let bucket = 3 * usize::from(*kind == MemberKind::Cable) + state;
+            self.points[bucket].extend(ends.map(|n| Point3 {
+                x: positions[n].x,
+                y: positions[n].y,
+                z: positions[n].z,
+            }));
+        }
         let mut lines = Vec::new();
-        for (kind, thickness) in [(MemberKind::Strut, STRUT_WIDTH), (MemberKind::Cable, CABLE_WIDTH)] {
-            for color in [BROWN, RED, GREY] {
-                let points: Vec<Point3> = (self.members.iter().zip(forces))
-                    .filter(|((_, _, k), &f)| *k == kind && state(kind, f) == color)
-                    .flat_map(|((_, ends, _), _)| {
-                        ends.map(|n| Point3 {
-                            x: positions[n].x,
-                            y: positions[n].y,
-                            z: positions[n].z,
-                        })
-                    })
-                    .collect();
-                if !points.is_empty() {
-                    let r#type = line_primitive::Type::LineList as i32;
-                    lines.push(LinePrimitive {
-                        r#type,
-                        thickness,
-                        scale_invariant: true,
-                        points,
-                        color: Some(color),
-                        ..Default::default()
-                    });
-                }
+        for (bucket, points) in self.points.iter_mut().enumerate() {
+            if !points.is_empty() {
+                lines.push(LinePrimitive {
+                    r#type: line_primitive::Type::LineList as i32,
+                    thickness: if bucket < 3 { STRUT_WIDTH } else { CABLE_WIDTH },
+                    scale_invariant: true,
+                    points: std::mem::take(points),
+                    color: Some([BROWN, RED, GREY][bucket % 3]),
+                    ..Default::default()
+                });
             }
         }
         let timestamp = Timestamp::new((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32);
@@ -268,6 +271,15 @@ impl McapRecorder {
         SceneUpdate {
             entities: vec![entity],
             ..Default::default()
+        }
+    }
+
+    /// Returns the point buffers of a scene made by [`McapRecorder::scene`] for reuse.
+    fn reclaim(&mut self, scene: SceneUpdate) {
+        let lines = scene.entities.into_iter().flat_map(|e| e.lines);
+        for (slot, mut line) in self.points.iter_mut().filter(|p| p.is_empty()).zip(lines) {
+            line.points.clear();
+            *slot = line.points;
         }
     }
 
@@ -355,7 +367,16 @@ fn nanos(t: f64) -> u64 {
 
 impl Recorder for McapRecorder {
     fn model(&mut self, record: &ModelRecord) -> RecordResult {
-        self.members = record.model.members.iter().map(|m| (m.id.clone(), m.nodes, m.kind)).collect();
+        self.members = record.model.members.iter().map(|m| (m.nodes, m.kind)).collect();
+        self.member_forces.members = record
+            .model
+            .members
+            .iter()
+            .map(|m| msg::MemberForce {
+                id: m.id.clone(),
+                force: 0.0,
+            })
+            .collect();
         Ok(())
     }
 
@@ -378,18 +399,10 @@ impl Recorder for McapRecorder {
     }
 
     fn frame(&mut self, frame: &Frame) -> RecordResult {
-        if self.stride.keep(frame) {
-            self.record_frame(frame)?;
-        } else {
-            self.clock.frame_time(frame);
-        }
-        Ok(())
+        self.record_frame(frame)
     }
 
     fn end_stage(&mut self, _stage: Stage) -> RecordResult {
-        if let Some(last) = self.stride.take_held() {
-            self.record_frame(&last.as_frame())?;
-        }
         self.clock.end();
         self.stage = None;
         Ok(())
@@ -435,8 +448,8 @@ mod tests {
         }
         .build();
         let path = temp_path("replay.mcap");
-        let mut rec = McapRecorder::create(&path, "case-7", 3).unwrap();
-        drive(&mut rec, &model, 10).unwrap();
+        let mut rec = McapRecorder::create(&path, "case-7").unwrap();
+        drive(&mut rec, &model, 10, 3).unwrap();
         rec.finish("complete").unwrap();
 
         let bytes = std::fs::read(&path).unwrap();
@@ -480,7 +493,7 @@ mod tests {
         }
         .build();
         let path = temp_path("colours.mcap");
-        let mut rec = McapRecorder::create(&path, "c", 1).unwrap();
+        let mut rec = McapRecorder::create(&path, "c").unwrap();
         rec.model(&ModelRecord {
             model: &model,
             rest_lengths: &[1.0; 12],
