@@ -4,6 +4,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::linalg::cholesky::llt::{factor as llt_factor, solve as llt_solve};
 use faer::linalg::lu::partial_pivoting::{factor as lu_factor, solve as lu_solve};
 use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering};
 use faer::sparse::linalg::lu::{factorize_symbolic_lu, NumericLu, SymbolicLu};
@@ -55,10 +56,14 @@ pub trait TangentSolver: TangentSink + Send {
 /// leaves pivots ~1e-9 relative).
 const SINGULAR_PIVOT: f64 = 1e-13;
 
-/// Dense partial-pivoting LU. With row pivoting only, U's j-th pivot belongs to column
-/// j, i.e. to free DOF j, which is what a singularity report names.
+/// Dense solver: Cholesky first (the Newmark step matrix and a stable structure's K_T are
+/// symmetric positive definite, and Cholesky costs half an LU), partial-pivoting LU when
+/// Cholesky fails (an indefinite static state). With row pivoting only, U's j-th pivot
+/// belongs to column j, i.e. to free DOF j, which is what a singularity report names.
 pub struct DenseSolver {
     k: Mat<f64>,
+    /// Factor storage; `k` is kept for the LU fallback.
+    work: Mat<f64>,
     perm: Vec<usize>,
     perm_inv: Vec<usize>,
     mem: MemBuffer,
@@ -67,11 +72,14 @@ pub struct DenseSolver {
 impl DenseSolver {
     pub fn new(n: usize) -> Self {
         let req = StackReq::any_of(&[
+            llt_factor::cholesky_in_place_scratch::<f64>(n, Par::Seq, Default::default()),
+            llt_solve::solve_in_place_scratch::<f64>(n, 1, Par::Seq),
             lu_factor::lu_in_place_scratch::<usize, f64>(n, n, Par::Seq, Default::default()),
             lu_solve::solve_in_place_scratch::<usize, f64>(n, 1, Par::Seq),
         ]);
         DenseSolver {
             k: Mat::zeros(n, n),
+            work: Mat::zeros(n, n),
             perm: vec![0; n],
             perm_inv: vec![0; n],
             mem: MemBuffer::new(req),
@@ -92,6 +100,19 @@ impl TangentSolver for DenseSolver {
 
     fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
         let n = self.k.nrows();
+        let x = faer::ColMut::from_slice_mut(rhs);
+        self.work.copy_from(&self.k);
+        let llt = llt_factor::cholesky_in_place(
+            self.work.as_mut(),
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+            Default::default(),
+        );
+        if llt.is_ok() {
+            llt_solve::solve_in_place_with_conj(self.work.as_ref(), Conj::No, x.as_mat_mut(), Par::Seq, MemStack::new(&mut self.mem));
+            return Ok(());
+        }
         let stack = MemStack::new(&mut self.mem);
         let (_, perm) = lu_factor::lu_in_place(
             self.k.as_mut(),
@@ -109,7 +130,6 @@ impl TangentSolver for DenseSolver {
         {
             return Err(LinearError::Singular { dof: Some(dof), ratio });
         }
-        let x = faer::ColMut::from_slice_mut(rhs);
         let stack = MemStack::new(&mut self.mem);
         lu_solve::solve_in_place_with_conj(self.k.as_ref(), self.k.as_ref(), perm, Conj::No, x.as_mat_mut(), Par::Seq, stack);
         Ok(())
