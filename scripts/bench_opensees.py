@@ -1,0 +1,501 @@
+#!/usr/bin/env python3
+"""Side-by-side benchmark: the paper model's deployment in tsim and in OpenSeesPy.
+
+Issue 6, item 1b. Run through `scripts/bench_opensees`, which installs libblas3 and
+openseespy first. Steps:
+
+1. tsim runs `configs/bench_elastic.yaml` (linear-elastic struts and cables) with HDF5 on:
+   the reference trajectory and the model (result.h5).
+2. tsim runs the same case with outputs off, `--reps` times: the deployment stage's wall
+   time (outcome.json, deployment.wall_seconds), median.
+3. OpenSees rebuilds the deployment from result.h5: nodes at the folded positions, the
+   same supports and lumped masses, corotTruss elements with InitStrainMaterial(Elastic)
+   so that N = EA (l − l0)/l0 with tsim's rest lengths, the launch load, Rayleigh damping
+   with the committed (last converged) tangent, Newmark average acceleration, Newton.
+   Model building and the analysis loop are timed separately, `--reps` times (median).
+4. A separate OpenSees run records every step and is compared with tsim's trajectory.
+
+Writes bench/opensees.md (unless --no-write) and prints the same table.
+"""
+
+import argparse
+import atexit
+import datetime
+import json
+import os
+import platform
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+
+# tsim's material library values for the strut (src/config/materials.rs): the config only
+# names `aluminium`. Checked against the member forces tsim recorded (see check_forces).
+LIBRARY = {
+    "aluminium": {"youngs_modulus": 68e9, "area": 0.01},
+    "steel": {"youngs_modulus": 210e9, "area": 0.01},
+}
+
+
+def sh(cmd, **kw):
+    return subprocess.run(cmd, check=True, capture_output=True, text=True, **kw).stdout.strip()
+
+
+def load_average():
+    return os.getloadavg()[0]
+
+
+# --------------------------------------------------------------------------------------
+# tsim
+# --------------------------------------------------------------------------------------
+
+
+def run_tsim(tsim, config, out):
+    """Runs one case with --force; returns (outcome dict, case directory)."""
+    subprocess.run([str(tsim), "run", str(config), "--quiet", "--force", "--out", str(out)],
+                   check=True, capture_output=True, text=True)
+    name = yaml.safe_load(Path(config).read_text())["name"]
+    case = Path(out) / name / name
+    outcome = json.loads((case / "outcome.json").read_text())
+    if outcome["status"] != "complete":
+        raise SystemExit(f"tsim case failed: {outcome}")
+    return outcome, case
+
+
+def outputs_off_config(config, tmp):
+    cfg = yaml.safe_load(Path(config).read_text())
+    cfg.setdefault("outputs", {})
+    cfg["outputs"]["hdf5"] = False
+    cfg["outputs"]["mcap"] = False
+    path = Path(tmp) / "bench_elastic_off.yaml"
+    path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return path
+
+
+# --------------------------------------------------------------------------------------
+# the model from result.h5
+# --------------------------------------------------------------------------------------
+
+
+def decode(a):
+    return [x.decode() if isinstance(x, bytes) else str(x) for x in a]
+
+
+def read_case(h5path, config):
+    """Model, folded start and tsim's deployment trajectory from result.h5."""
+    cfg = yaml.safe_load(Path(config).read_text())
+    with h5py.File(h5path, "r") as f:
+        m = f["model"]
+        case = {
+            "node": decode(m["node"][:]),
+            "node_group": decode(m["node_group"][:]),
+            "member_nodes": m["member_nodes"][:].astype(int),
+            "member_kind": decode(m["member_kind"][:]),
+            "rest_length": m["rest_length"][:],
+            "mass": m["mass"][:],
+            "support": m["support"][:].astype(bool),
+            "x0": f["folding/position"][-1, :, :],
+            "initial_position": m["initial_position"][:],
+            "time": f["deployment/time"][:],
+            "position": f["deployment/position"][:],
+            "member_force": f["deployment/member_force"][:],
+            "member_length": f["deployment/member_length"][:],
+        }
+    if not np.array_equal(case["x0"], case["position"][0]):
+        raise SystemExit("result.h5: the deployment does not start at the last folding state")
+    # EA per member from the config: struts from tsim's library, cables from `materials`.
+    mats = dict(LIBRARY)
+    for name, spec in (cfg.get("materials") or {}).items():
+        law = spec["law"]
+        if "elastic" not in law:
+            raise SystemExit(f"material {name}: the benchmark needs linear-elastic members")
+        if law["elastic"].get("tension_only", False):
+            raise SystemExit(f"material {name}: tension_only must be false (OpenSees' Elastic truss carries compression)")
+        mats[name] = {"youngs_modulus": float(law["elastic"]["youngs_modulus"]), "area": float(spec["area"])}
+    sub = cfg["substitution"]
+    e = {k: mats[sub[k]]["youngs_modulus"] for k in ("strut", "cable")}
+    a = {k: mats[sub[k]]["area"] for k in ("strut", "cable")}
+    case["E"] = np.array([e[k] for k in case["member_kind"]])
+    case["A"] = np.array([a[k] for k in case["member_kind"]])
+    dep = cfg["deployment"]
+    case["dt"] = float(dep.get("dt", 0.001))
+    case["steps"] = int(round(float(dep["duration"]) / case["dt"]))
+    case["beta_nm"] = float(dep.get("newmark_beta", 0.25))
+    case["gamma_nm"] = float(dep.get("newmark_gamma", 0.5))
+    if dep.get("damping_tangent", "last_converged") != "last_converged":
+        raise SystemExit("the benchmark maps damping_tangent: last_converged onto betaKcomm")
+    ray = cfg["eigen"]["rayleigh"]
+    case["alpha"], case["beta"] = float(ray["alpha"]), float(ray["beta"])
+    load = dep["load"]
+    if load.get("profile", "step") != "step":
+        raise SystemExit("the benchmark supports the step launch profile only")
+    groups = set(load["groups"])
+    case["load_nodes"] = [i for i, g in enumerate(case["node_group"]) if g in groups]
+    case["load_force"] = np.array(load["force"], dtype=float)
+    case["load_duration"] = float(load["duration"])
+    return case
+
+
+def check_forces(case):
+    """tsim's recorded member forces against N = EA (l − l0)/l0 with the EA used here."""
+    ea, l0 = case["E"] * case["A"], case["rest_length"]
+    n = ea * (case["member_length"] - l0) / l0
+    scale = np.abs(case["member_force"]).max()
+    return np.abs(n - case["member_force"]).max() / scale
+
+
+def load_steps(case):
+    """Last step whose end time carries the launch, by tsim's rule (t_{k-1} + dt < duration)."""
+    dt, last = case["dt"], 0
+    for k in range(1, case["steps"] + 1):
+        if (k - 1) * dt + dt < case["load_duration"]:
+            last = k
+    return last
+
+
+def internal_force(case, x):
+    """Resisting force p(x) (equilibrium: p = f): at node a of member a–b with axial force N
+    and unit vector e from a to b, p_a = −N e, p_b = +N e."""
+    p = np.zeros_like(x)
+    for m, (a, b) in enumerate(case["member_nodes"]):
+        d = x[b] - x[a]
+        length = np.linalg.norm(d)
+        n = case["E"][m] * case["A"][m] * (length - case["rest_length"][m]) / case["rest_length"][m]
+        p[a] -= n * d / length
+        p[b] += n * d / length
+    return p
+
+
+# --------------------------------------------------------------------------------------
+# OpenSees
+# --------------------------------------------------------------------------------------
+
+
+def build_opensees(ops, case, system, tol, consistent_a0=True, damping="committed"):
+    """Builds the deployment model and its transient analysis in OpenSees (after wipe)."""
+    x0, nn = case["x0"], len(case["node"])
+    ops.wipe()
+    ops.model("basic", "-ndm", 3, "-ndf", 3)
+    for i in range(nn):
+        ops.node(i + 1, *map(float, x0[i]))
+        ops.mass(i + 1, *([float(case["mass"][i])] * 3))
+        if case["support"][i].any():
+            ops.fix(i + 1, *map(int, case["support"][i]))
+    # N = E'A ((l − L)/L + ε0) with L the node distance at definition, E' = E L/l0 and
+    # ε0 = (L − l0)/L equals E A (l − l0)/l0 for every l.
+    for m, (a, b) in enumerate(case["member_nodes"]):
+        big_l = float(np.linalg.norm(x0[b] - x0[a]))
+        l0 = float(case["rest_length"][m])
+        ops.uniaxialMaterial("Elastic", 2 * m + 1, float(case["E"][m]) * big_l / l0)
+        ops.uniaxialMaterial("InitStrainMaterial", 2 * m + 2, 2 * m + 1, (big_l - l0) / big_l)
+        # -doRayleigh 1: truss elements leave out Rayleigh's βK terms by default.
+        ops.element("corotTruss", m + 1, int(a) + 1, int(b) + 1, float(case["A"][m]), 2 * m + 2, "-doRayleigh", 1)
+    # Launch: full force at t = 0 and at the end of steps 1..k_last (tsim's step profile);
+    # the Rectangular series ends half a step after the last loaded step.
+    t_end = (load_steps(case) + 0.5) * case["dt"]
+    ops.timeSeries("Rectangular", 1, 0.0, t_end)
+    ops.pattern("Plain", 1, 1)
+    for i in case["load_nodes"]:
+        ops.load(i + 1, *map(float, case["load_force"]))
+    if consistent_a0:
+        # tsim starts from the consistent acceleration a0 = M⁻¹ (f0 − p(x0)) (v0 = 0);
+        # OpenSees' Newmark starts from the nodes' committed accelerations (zero).
+        f0 = np.zeros_like(x0)
+        f0[case["load_nodes"]] += case["load_force"]
+        a0 = (f0 - internal_force(case, x0)) / case["mass"][:, None]
+        for i in range(nn):
+            for d in range(3):
+                if not case["support"][i, d]:
+                    ops.setNodeAccel(i + 1, d + 1, float(a0[i, d]), "-commit")
+    ops.constraints("Plain")
+    ops.numberer("RCM")
+    ops.system(*system)
+    ops.test("NormDispIncr", tol, 50)
+    ops.algorithm("Newton")
+    ops.integrator("Newmark", case["gamma_nm"], case["beta_nm"])
+    if damping == "committed":
+        ops.rayleigh(case["alpha"], 0.0, 0.0, case["beta"])
+    elif damping == "current":
+        ops.rayleigh(case["alpha"], case["beta"], 0.0, 0.0)
+    elif damping == "initial":
+        ops.rayleigh(case["alpha"], 0.0, case["beta"], 0.0)
+    ops.analysis("Transient")
+
+
+def check_opensees_forces(ops, case, system, tol):
+    """OpenSees' axial forces at the folded state against EA (L − l0)/l0 (relative)."""
+    build_opensees(ops, case, system, tol)
+    x0, err = case["x0"], 0.0
+    for m, (a, b) in enumerate(case["member_nodes"]):
+        big_l = np.linalg.norm(x0[b] - x0[a])
+        l0 = case["rest_length"][m]
+        expect = case["E"][m] * case["A"][m] * (big_l - l0) / l0
+        err = max(err, abs(ops.eleResponse(m + 1, "axialForce")[0] - expect))
+    return err / max(abs(case["member_force"][0]).max(), 1e-300)
+
+
+def run_opensees_timed(ops, case, system, tol, reps):
+    """Model building and the analysis loop (one analyze call), timed separately."""
+    builds, loops, finals = [], [], []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        build_opensees(ops, case, system, tol)
+        t1 = time.perf_counter()
+        ok = ops.analyze(case["steps"], case["dt"])
+        t2 = time.perf_counter()
+        if ok != 0:
+            raise SystemExit(f"OpenSees analyze failed ({ok}) with system {system}")
+        builds.append(t1 - t0)
+        loops.append(t2 - t1)
+        finals.append(positions(ops, case))
+    return builds, loops, finals[-1]
+
+
+def positions(ops, case):
+    return case["x0"] + np.array([ops.nodeDisp(i + 1) for i in range(len(case["node"]))])
+
+
+def run_opensees_recorded(ops, case, system, tol, **kw):
+    """Step by step, recording positions and Newton iterations; None where it fails."""
+    build_opensees(ops, case, system, tol, **kw)
+    traj = np.empty((case["steps"] + 1,) + case["x0"].shape)
+    traj[0] = positions(ops, case)
+    iterations = 0
+    for k in range(1, case["steps"] + 1):
+        if ops.analyze(1, case["dt"]) != 0:
+            return None, k, iterations
+        iterations += ops.testIter()
+        traj[k] = positions(ops, case)
+    return traj, None, iterations
+
+
+# --------------------------------------------------------------------------------------
+# report
+# --------------------------------------------------------------------------------------
+
+
+def compare(case, traj, height):
+    ref = case["position"]
+    top = [i for i, g in enumerate(case["node_group"]) if g == "top"][0]
+    dz_top = np.abs(ref[:, top, 2] - traj[:, top, 2])
+    return {
+        "top_node": case["node"][top],
+        "max_dz_top": dz_top.max() / height,
+        "max_dz_top_at": float(case["time"][dz_top.argmax()]),
+        "rms_z": np.sqrt(np.mean((ref[:, :, 2] - traj[:, :, 2]) ** 2)) / height,
+        "rms_xyz": np.sqrt(np.mean(np.sum((ref - traj) ** 2, axis=2))) / height,
+        "max_xyz": np.linalg.norm(ref - traj, axis=2).max() / height,
+        "final_xyz": np.linalg.norm(ref[-1] - traj[-1], axis=1).max() / height,
+    }
+
+
+def machine():
+    cpu = "unknown"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"nproc": os.cpu_count(), "cpu": cpu, "kernel": platform.release()}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--config", default=str(ROOT / "configs/bench_elastic.yaml"))
+    ap.add_argument("--tsim", default=str(ROOT / "target/release/tsim"))
+    ap.add_argument("--reps", type=int, default=5, help="timed repetitions per program (median)")
+    ap.add_argument("--system", default="BandSPD",
+                    help="OpenSees linear system for the timed runs (BandSPD, ProfileSPD, BandGeneral, FullGeneral, UmfPack)")
+    ap.add_argument("--tol", type=float,
+                    help="OpenSees NormDispIncr tolerance [m] (default: tsim's displacement tolerance, "
+                         "1e-10 × model size, which tsim applies to the largest increment component)")
+    ap.add_argument("--compare-systems", action="store_true", help="also time the other dense/banded systems")
+    ap.add_argument("--variants", action="store_true",
+                    help="also run OpenSees with a zero initial acceleration and with βK on the current/initial tangent")
+    ap.add_argument("--out", default=str(ROOT / "bench/opensees.md"))
+    ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--source", help="what the tsim binary was built from, for the table (default: git describe --dirty)")
+    args = ap.parse_args()
+
+    import openseespy.opensees as ops  # noqa: E402 (installed by scripts/bench_opensees)
+
+    system = [args.system]
+    tmp = tempfile.mkdtemp(prefix="tsim-bench-")
+    atexit.register(shutil.rmtree, tmp, ignore_errors=True)
+    # A private copy of the binary: a concurrent `cargo build` must not swap it mid-run.
+    tsim = Path(tmp) / "tsim"
+    shutil.copy2(args.tsim, tsim)
+    load_start = load_average()
+    print(f"load average at start: {load_start:.2f} ({os.cpu_count()} cores)", file=sys.stderr)
+
+    # 1. tsim reference run (HDF5 on) and the model.
+    ref_outcome, ref_case = run_tsim(tsim, args.config, Path(tmp) / "ref")
+    case = read_case(ref_case / "result.h5", args.config)
+    height = ref_outcome["summary"]["formfinding"]["height"]
+    force_err = check_forces(case)
+    if force_err > 1e-9:
+        raise SystemExit(f"tsim's member forces differ from EA (l − l0)/l0 by {force_err:.2e}: wrong EA?")
+    steps = case["steps"]
+    # tsim's Newton: largest increment component ≤ 1e-10 × model size (bounding-box diagonal
+    # of the model's nodes), and residual ≤ 1e-10 × force scale.
+    size = float(np.linalg.norm(case["initial_position"].max(0) - case["initial_position"].min(0)))
+    if args.tol is None:
+        args.tol = 1e-10 * size
+
+    # 2./3. Timing, interleaved so that both programs see the same background load: per
+    # repetition tsim with outputs off, tsim with HDF5 on, OpenSees (build + one analyze).
+    off_cfg = outputs_off_config(args.config, tmp)
+    tsim_off, tsim_on, tsim_iters, os_build, os_loop, loads = [], [], None, [], [], []
+    for rep in range(args.reps):
+        loads.append(load_average())
+        o, _ = run_tsim(tsim, off_cfg, Path(tmp) / "off")
+        tsim_off.append(o["summary"]["deployment"]["wall_seconds"])
+        tsim_iters = o["summary"]["deployment"]["newton_iterations"]
+        o, _ = run_tsim(tsim, args.config, Path(tmp) / "on")
+        tsim_on.append(o["summary"]["deployment"]["wall_seconds"])
+        b, l, os_final = run_opensees_timed(ops, case, system, args.tol, 1)
+        os_build += b
+        os_loop += l
+        print(f"rep {rep + 1}/{args.reps}: load {loads[-1]:.2f}, tsim off {tsim_off[-1]:.3f} s, "
+              f"tsim HDF5 {tsim_on[-1]:.3f} s, OpenSees {os_loop[-1]:.3f} s", file=sys.stderr)
+    others = {}
+    if args.compare_systems:
+        for s in ["BandSPD", "ProfileSPD", "BandGeneral", "FullGeneral", "UmfPack"]:
+            if s != args.system:
+                others[s] = statistics.median(run_opensees_timed(ops, case, [s], args.tol, args.reps)[1])
+
+    # 4. Trajectory comparison.
+    os_force_err = check_opensees_forces(ops, case, system, args.tol)
+    traj, failed_at, os_iters = run_opensees_recorded(ops, case, system, args.tol)
+    if traj is None:
+        raise SystemExit(f"OpenSees failed at step {failed_at}")
+    cmp_ = compare(case, traj, height)
+    timed_vs_recorded = np.abs(os_final - traj[-1]).max() / height
+    variants = {}
+    if args.variants:
+        for label, kw in [("zero initial acceleration (OpenSees default)", {"consistent_a0": False}),
+                          ("βK on the current tangent (rayleigh βK)", {"damping": "current"}),
+                          ("βK on the initial tangent (rayleigh βK0)", {"damping": "initial"})]:
+            t0 = time.perf_counter()
+            tr, fail, it = run_opensees_recorded(ops, case, system, args.tol, **kw)
+            wall = time.perf_counter() - t0
+            variants[label] = (None, fail, it, wall) if tr is None else (compare(case, tr, height), None, it, wall)
+    load_end = load_average()
+
+    # Table.
+    med = statistics.median
+    t_off, t_on, t_os, t_build = med(tsim_off), med(tsim_on), med(os_loop), med(os_build)
+    m = machine()
+    versions = {
+        "tsim": sh([str(tsim), "--version"]).removeprefix("tsim "),
+        "rustc": sh(["rustc", "--version"]).removeprefix("rustc "),
+        "openseespy": ops.version() if hasattr(ops, "version") else "?",
+        "Python": platform.python_version(),
+        "NumPy": np.__version__,
+    }
+    try:
+        from importlib.metadata import version as pkg_version
+        versions["openseespy"] = f"{pkg_version('openseespy')} (OpenSees {versions['openseespy']})"
+    except Exception:
+        pass
+    # The command line for the table, less the options naming a private binary.
+    reproduce_args, skip = [], False
+    for a in sys.argv[1:]:
+        if skip:
+            skip = False
+        elif a in ("--tsim", "--source", "--out"):
+            skip = True
+        elif not a.startswith(("--tsim=", "--source=", "--out=")):
+            reproduce_args.append(a)
+    source = args.source or sh(["git", "-C", str(ROOT), "describe", "--always", "--dirty"])
+    lines = [
+        "# tsim vs OpenSeesPy: the paper model's deployment",
+        "",
+        "Issue 6, item 1b. Reproduce: `scripts/bench_opensees" + "".join(" " + a for a in reproduce_args) + "`",
+        "(installs libblas3, openseespy and PyYAML, builds tsim in release, runs both, rewrites",
+        "this file). Case:",
+        "`configs/bench_elastic.yaml`, the paper's 5×2 tower (20 nodes, 50 members, 52 free DOF)",
+        "with linear-elastic struts (aluminium) and cables (E = 1.245 MPa, A = 50 mm², compression",
+        f"allowed), deployment of {steps} Newmark steps (β = ¼, γ = ½) at Δt = {case['dt'] * 1e3:g} ms, "
+        f"Rayleigh α = {case['alpha']}, β = {case['beta']}",
+        "with βK on the last converged tangent, 95 N launch on the middle and top nodes for 0.05 s.",
+        "OpenSees: corotTruss (`-doRayleigh 1`) over InitStrainMaterial(Elastic) with",
+        "E' = E L/l0 and ε0 = (L − l0)/L (L: node distance at definition), so N = EA (l − l0)/l0",
+        "with tsim's rest lengths; lumped nodal masses; Rectangular launch series; consistent initial",
+        "acceleration (setNodeAccel); `rayleigh(α, 0, 0, β)` (committed stiffness);",
+        f"Newmark 0.5 0.25; Newton; NormDispIncr {args.tol:.2g} m (2-norm of the increment; tsim: largest",
+        f"increment component ≤ 1e-10 × model size = {1e-10 * size:.2g} m and residual ≤ 1e-10 × force scale);",
+        f"{args.system} with RCM numbering.",
+        "",
+        f"Machine: {m['nproc']} cores, {m['cpu']}, Linux {m['kernel']}; "
+        f"{datetime.date.today().isoformat()}; 1-min load average {min(loads):.2f}–{max(loads):.2f} "
+        "before the timed repetitions (shared machine).",
+        f"Versions: tsim {versions['tsim']} built from {source} (release profile), rustc {versions['rustc']}, "
+        f"openseespy {versions['openseespy']}, Python {versions['Python']}, NumPy {versions['NumPy']}.",
+        "",
+        f"Timings: median (best) of {args.reps} interleaved repetitions. tsim: the deployment stage's",
+        "wall time from outcome.json (`deployment.wall_seconds`; one process per run, the earlier",
+        f"stages not counted). OpenSees: one `analyze({steps}, {case['dt']:g})` call; model building",
+        "(wipe, nodes, materials, elements, loads, analysis objects) timed separately.",
+        "",
+        "| program | setting | deployment [s] | steps/s | Newton iterations |",
+        "|---|---|---|---|---|",
+        f"| tsim | outputs off | {t_off:.3f} ({min(tsim_off):.3f}) | {steps / t_off:,.0f} | {tsim_iters} |",
+        f"| tsim | HDF5 every step | {t_on:.3f} ({min(tsim_on):.3f}) | {steps / t_on:,.0f} | |",
+        f"| OpenSeesPy | analysis loop | {t_os:.3f} ({min(os_loop):.3f}) | {steps / t_os:,.0f} | {os_iters} |",
+        f"| OpenSeesPy | model building | {t_build:.4f} ({min(os_build):.4f}) | | |",
+        "",
+        f"**Ratio tsim / OpenSees (steps/s, tsim outputs off): {t_os / t_off:.2f}× on medians, "
+        f"{min(os_loop) / min(tsim_off):.2f}× on best times** (target ≥ 10×).",
+        "",
+        f"Runs [s]: tsim off {', '.join(f'{t:.3f}' for t in tsim_off)}; tsim HDF5 {', '.join(f'{t:.3f}' for t in tsim_on)}; "
+        f"OpenSees {', '.join(f'{t:.3f}' for t in os_loop)}.",
+    ]
+    if others:
+        lines += ["", "OpenSees with other linear systems (analysis loop, median): "
+                  + ", ".join(f"{s} {t:.3f} s" for s, t in others.items()) + "."]
+    lines += [
+        "",
+        f"Agreement (relative to the tower height H = {height:.3f} m, all {steps + 1} states):",
+        "",
+        "| measure | value |",
+        "|---|---|",
+        f"| max over time of \\|z_tsim − z_OpenSees\\|, top node `{cmp_['top_node']}` | {cmp_['max_dz_top']:.2e} H (at t = {cmp_['max_dz_top_at']:.3f} s) |",
+        f"| RMS of z difference over all nodes and times | {cmp_['rms_z']:.2e} H |",
+        f"| RMS of position difference (3-D) over all nodes and times | {cmp_['rms_xyz']:.2e} H |",
+        f"| max position difference, any node, any time | {cmp_['max_xyz']:.2e} H |",
+        f"| max position difference at t = {case['time'][-1]:g} s | {cmp_['final_xyz']:.2e} H |",
+        "",
+        f"The timed OpenSees runs end within {timed_vs_recorded:.1e} H of the recorded one.",
+        f"tsim's recorded member forces match EA (l − l0)/l0 to {force_err:.1e}, OpenSees' axial forces",
+        f"at the folded start match EA (L − l0)/l0 to {os_force_err:.1e} (relative to the largest force).",
+    ]
+    if variants:
+        lines += ["", "OpenSees variants (recorded step by step, wall time includes Python recording):", "",
+                  "| variant | result | max position difference | Newton iterations | wall [s] |", "|---|---|---|---|---|"]
+        for label, (c, fail, it, wall) in variants.items():
+            if c is None:
+                lines.append(f"| {label} | fails to converge at step {fail} | | {it} | {wall:.2f} |")
+            else:
+                lines.append(f"| {label} | completes | {c['max_xyz']:.2e} H | {it} | {wall:.2f} |")
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if not args.no_write:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(text)
+        print(f"written to {args.out}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
