@@ -32,23 +32,33 @@ impl Recorder for Recorders {
     }
 }
 
-/// The file recorders a case's `outputs` asks for: `result.h5` and `replay.mcap` in `dir`,
-/// each streaming on a thread of its own. `outputs.every` is not theirs to apply: the stages
-/// call `frame` only for the steps to record.
+/// The file recorders a case's `outputs` asks for: `result.h5` and `replay.mcap` in `dir`.
+/// With `background`, each streams on a thread of its own; that pays only when a core is
+/// free for the writers, so the runner asks for it only then (with every core running a
+/// case, writer threads just take turns with the solvers). `outputs.every` is not theirs
+/// to apply: the stages call `frame` only for the steps to record.
 pub fn file_recorders(
     outputs: &OutputSpec,
     dir: &Path,
     case_id: &str,
     config_yaml: &str,
+    background: bool,
 ) -> Result<Vec<Box<dyn Recorder>>, Box<dyn std::error::Error + Send + Sync>> {
+    fn boxed<R: Recorder + Send + 'static>(r: R, thread: &str, background: bool) -> Box<dyn Recorder> {
+        if background {
+            Box::new(Background::new(r, thread))
+        } else {
+            Box::new(r)
+        }
+    }
     let mut out: Vec<Box<dyn Recorder>> = Vec::new();
     if outputs.hdf5 {
         let h5 = super::h5::Hdf5Recorder::create(&dir.join("result.h5"), case_id, config_yaml)?;
-        out.push(Box::new(Background::new(h5, "tsim-hdf5")));
+        out.push(boxed(h5, "tsim-hdf5", background));
     }
     if outputs.mcap {
         let mcap = super::replay::McapRecorder::create(&dir.join("replay.mcap"), case_id)?;
-        out.push(Box::new(Background::new(mcap, "tsim-mcap")));
+        out.push(boxed(mcap, "tsim-mcap", background));
     }
     Ok(out)
 }

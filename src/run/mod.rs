@@ -74,10 +74,13 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
         .num_threads(opts.jobs.max(1))
         .build()
         .map_err(std::io::Error::other)?;
+    // Output writer threads only when a core is left over for them.
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let background = opts.jobs.max(1).min(cases.len()) < cores;
     let outcomes: Vec<CaseOutcome> = pool.install(|| {
         cases
             .par_iter()
-            .map(|case| run_one(case, &dir.join(&case.id), opts.force, &progress))
+            .map(|case| run_one(case, &dir.join(&case.id), opts.force, background, &progress))
             .collect()
     });
     progress.finish();
@@ -103,7 +106,7 @@ fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
     })
 }
 
-fn run_one(case: &Case, dir: &Path, force: bool, progress: &Progress) -> CaseOutcome {
+fn run_one(case: &Case, dir: &Path, force: bool, background: bool, progress: &Progress) -> CaseOutcome {
     if !force {
         if let Some(done) = already_complete(case, dir) {
             progress.done(&case.id, &done.status, 0.0);
@@ -111,7 +114,7 @@ fn run_one(case: &Case, dir: &Path, force: bool, progress: &Progress) -> CaseOut
         }
     }
     let start = Instant::now();
-    let result = execute(case, dir, progress);
+    let result = execute(case, dir, background, progress);
     let wall_seconds = start.elapsed().as_secs_f64();
     let (status, summary) = match result {
         Ok(s) => ("complete".to_string(), Some(s)),
@@ -157,13 +160,13 @@ fn draw_figures(dir: &Path) -> String {
 }
 
 /// Runs one case with its recorders; any error or panic becomes the failure reason.
-fn execute(case: &Case, dir: &Path, progress: &Progress) -> Result<CaseSummary, String> {
+fn execute(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Result<CaseSummary, String> {
     let _ = std::fs::remove_file(dir.join("outcome.json"));
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     std::fs::write(dir.join("case.yaml"), &case.yaml).map_err(|e| format!("cannot write case.yaml: {e}"))?;
     let mut recorders: Vec<Box<dyn Recorder>> = vec![Box::new(progress.case_bar(&case.id))];
     recorders.extend(
-        crate::record::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml)
+        crate::record::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml, background)
             .map_err(|e| format!("cannot create outputs: {e}"))?,
     );
     let mut recorder = Recorders(recorders);
