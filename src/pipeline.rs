@@ -6,7 +6,7 @@ use crate::config::{Axis, CaseConfig, LoadSpec, TransientSpec};
 use crate::dynamics::{NewmarkParams, NodalLoad, Rayleigh};
 use crate::error::{Error, Result};
 use crate::law::ForceLaw;
-use crate::model::{MemberKind, Model};
+use crate::model::{height, MemberKind, Model};
 use crate::record::{EigenRecord, FormFindRecord, ModelRecord, Recorder, Stage};
 use crate::stage::eigen::{free_masses, lowest_stiffness, modes, tangent_matrix};
 use crate::stage::fold::{FoldSummary, Folding, Prescribed};
@@ -115,13 +115,6 @@ fn params(t: &TransientSpec) -> NewmarkParams {
         duration: t.duration,
         max_cuts: t.max_cuts,
     }
-}
-
-fn height(x: &[Vector3<f64>]) -> f64 {
-    let (lo, hi) = x
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
-    hi - lo
 }
 
 /// Runs every configured stage of one case.

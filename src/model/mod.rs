@@ -68,10 +68,6 @@ impl Model {
         self.nodes.iter().map(|n| n.xyz).collect()
     }
 
-    pub fn node_index(&self, id: &str) -> Option<usize> {
-        self.nodes.iter().position(|n| n.id == id)
-    }
-
     /// Number of supported directions.
     pub fn support_count(&self) -> usize {
         self.nodes.iter().map(|n| n.support.iter().filter(|&&s| s).count()).sum()
@@ -88,15 +84,6 @@ impl Model {
             })
     }
 
-    /// Members belonging to a member group.
-    pub fn members_in_group<'a>(&'a self, group: &'a str) -> impl Iterator<Item = usize> + 'a {
-        self.members
-            .iter()
-            .enumerate()
-            .filter(move |(_, m)| m.groups.iter().any(|g| g == group))
-            .map(|(i, _)| i)
-    }
-
     /// Largest distance between two nodes' bounding-box corners: the model's length scale.
     pub fn size(&self) -> f64 {
         let mut lo = Vector3::repeat(f64::INFINITY);
@@ -107,4 +94,13 @@ impl Model {
         }
         (hi - lo).norm()
     }
+}
+
+/// Vertical extent max z − min z of a set of positions [m]: the tower height that folding
+/// and deployment are measured against.
+pub fn height(x: &[Vector3<f64>]) -> f64 {
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
+    hi - lo
 }

@@ -193,16 +193,6 @@ impl SparseSolver {
             slots: Vec::new(),
         }
     }
-
-    /// Stored entries of the matrix.
-    pub fn nnz(&self) -> usize {
-        self.values.len()
-    }
-
-    /// Entries of the Cholesky factor.
-    pub fn factor_nnz(&self) -> usize {
-        self.l_values.len()
-    }
 }
 
 impl SparseSolver {

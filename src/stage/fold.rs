@@ -5,7 +5,7 @@
 
 use super::StaticEquilibrium;
 use crate::error::{Error, Result};
-use crate::model::Model;
+use crate::model::{height, Model};
 use crate::record::{Energy, Frame, Recorder, Stage};
 use crate::solve::{newton, NewtonSettings, NewtonWorkspace, SolveError};
 use crate::tsm::{Assembly, DofMap, Elements};
@@ -37,13 +37,6 @@ pub struct FoldSummary {
     pub height_ratio: f64,
     #[serde(skip)]
     pub final_positions: Vec<Vector3<f64>>,
-}
-
-fn height(x: &[Vector3<f64>]) -> f64 {
-    let (lo, hi) = x
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
-    hi - lo
 }
 
 struct FoldState<'a> {
