@@ -7,11 +7,13 @@ openseespy first. Steps:
 1. tsim runs `configs/bench_elastic.yaml` (linear-elastic struts and cables) with HDF5 on:
    the reference trajectory and the model (result.h5).
 2. tsim runs the same case with outputs off, `--reps` times: the deployment stage's wall
-   time (outcome.json, deployment.wall_seconds), median.
+   time (outcome.json, deployment.wall_seconds), median; once with its default tangent
+   reuse and once with full Newton (`newton.tangent: full`), the like-for-like setting.
 3. OpenSees rebuilds the deployment from result.h5: nodes at the folded positions, the
    same supports and lumped masses, corotTruss elements with InitStrainMaterial(Elastic)
    so that N = EA (l − l0)/l0 with tsim's rest lengths, the launch load, Rayleigh damping
-   with the committed (last converged) tangent, Newmark average acceleration, Newton.
+   with the committed (last converged) tangent, Newmark average acceleration, Newton
+   (and, for the timing, each of `--algorithms`: OpenSees' own tangent-reusing solvers).
    Model building and the analysis loop are timed separately, `--reps` times (median).
 4. A separate OpenSees run records every step and is compared with tsim's trajectory.
 
@@ -71,12 +73,15 @@ def run_tsim(tsim, config, out):
     return outcome, case
 
 
-def outputs_off_config(config, tmp):
+def outputs_off_config(config, tmp, tangent=None):
+    """The case with outputs off, and with `newton.tangent` set if given."""
     cfg = yaml.safe_load(Path(config).read_text())
     cfg.setdefault("outputs", {})
     cfg["outputs"]["hdf5"] = False
     cfg["outputs"]["mcap"] = False
-    path = Path(tmp) / "bench_elastic_off.yaml"
+    if tangent:
+        cfg.setdefault("newton", {})["tangent"] = tangent
+    path = Path(tmp) / f"bench_elastic_off_{tangent or 'default'}.yaml"
     path.write_text(yaml.safe_dump(cfg, sort_keys=False))
     return path
 
@@ -180,7 +185,11 @@ def internal_force(case, x):
 # --------------------------------------------------------------------------------------
 
 
-def build_opensees(ops, case, system, tol, consistent_a0=True, damping="committed"):
+class OpenSeesFailed(Exception):
+    pass
+
+
+def build_opensees(ops, case, system, tol, consistent_a0=True, damping="committed", algorithm="Newton"):
     """Builds the deployment model and its transient analysis in OpenSees (after wipe)."""
     x0, nn = case["x0"], len(case["node"])
     ops.wipe()
@@ -220,7 +229,7 @@ def build_opensees(ops, case, system, tol, consistent_a0=True, damping="committe
     ops.numberer("RCM")
     ops.system(*system)
     ops.test("NormDispIncr", tol, 50)
-    ops.algorithm("Newton")
+    ops.algorithm(algorithm)
     ops.integrator("Newmark", case["gamma_nm"], case["beta_nm"])
     if damping == "committed":
         ops.rayleigh(case["alpha"], 0.0, 0.0, case["beta"])
@@ -243,17 +252,17 @@ def check_opensees_forces(ops, case, system, tol):
     return err / max(abs(case["member_force"][0]).max(), 1e-300)
 
 
-def run_opensees_timed(ops, case, system, tol, reps):
+def run_opensees_timed(ops, case, system, tol, reps, algorithm="Newton"):
     """Model building and the analysis loop (one analyze call), timed separately."""
     builds, loops, finals = [], [], []
     for _ in range(reps):
         t0 = time.perf_counter()
-        build_opensees(ops, case, system, tol)
+        build_opensees(ops, case, system, tol, algorithm=algorithm)
         t1 = time.perf_counter()
         ok = ops.analyze(case["steps"], case["dt"])
         t2 = time.perf_counter()
         if ok != 0:
-            raise SystemExit(f"OpenSees analyze failed ({ok}) with system {system}")
+            raise OpenSeesFailed(f"OpenSees analyze failed ({ok}) with system {system}, algorithm {algorithm}")
         builds.append(t1 - t0)
         loops.append(t2 - t1)
         finals.append(positions(ops, case))
@@ -321,6 +330,8 @@ def main():
                     help="OpenSees NormDispIncr tolerance [m] (default: tsim's displacement tolerance, "
                          "1e-10 × model size, which tsim applies to the largest increment component)")
     ap.add_argument("--compare-systems", action="store_true", help="also time the other dense/banded systems")
+    ap.add_argument("--algorithms", default="ModifiedNewton,KrylovNewton",
+                    help="OpenSees solution algorithms timed besides Newton (comma-separated; empty: none)")
     ap.add_argument("--variants", action="store_true",
                     help="also run OpenSees with a zero initial acceleration and with βK on the current/initial tangent")
     ap.add_argument("--out", default=str(ROOT / "bench/opensees.md"))
@@ -356,19 +367,35 @@ def main():
     # 2./3. Timing, interleaved so that both programs see the same background load: per
     # repetition tsim with outputs off, tsim with HDF5 on, OpenSees (build + one analyze).
     off_cfg = outputs_off_config(args.config, tmp)
-    tsim_off, tsim_on, tsim_iters, os_build, os_loop, loads = [], [], None, [], [], []
+    full_cfg = outputs_off_config(args.config, tmp, tangent="full")
+    algorithms = [a for a in args.algorithms.split(",") if a and a != "Newton"]
+    tsim_off, tsim_full, tsim_on, os_build, os_loop, loads = [], [], [], [], [], []
+    tsim_counts = {}
+    alg_loop, alg_final, alg_failed = {a: [] for a in algorithms}, {}, {}
     for rep in range(args.reps):
         loads.append(load_average())
-        o, _ = run_tsim(tsim, off_cfg, Path(tmp) / "off")
-        tsim_off.append(o["summary"]["deployment"]["wall_seconds"])
-        tsim_iters = o["summary"]["deployment"]["newton_iterations"]
+        for label, cfg_path, times in [("default", off_cfg, tsim_off), ("full", full_cfg, tsim_full)]:
+            o, _ = run_tsim(tsim, cfg_path, Path(tmp) / label)
+            d = o["summary"]["deployment"]
+            times.append(d["wall_seconds"])
+            tsim_counts[label] = (d["newton_iterations"], d["factorizations"])
         o, _ = run_tsim(tsim, args.config, Path(tmp) / "on")
         tsim_on.append(o["summary"]["deployment"]["wall_seconds"])
         b, l, os_final = run_opensees_timed(ops, case, system, args.tol, 1)
         os_build += b
         os_loop += l
-        print(f"rep {rep + 1}/{args.reps}: load {loads[-1]:.2f}, tsim off {tsim_off[-1]:.3f} s, "
-              f"tsim HDF5 {tsim_on[-1]:.3f} s, OpenSees {os_loop[-1]:.3f} s", file=sys.stderr)
+        for alg in algorithms:
+            if alg in alg_failed:
+                continue
+            try:
+                _, l, alg_final[alg] = run_opensees_timed(ops, case, system, args.tol, 1, alg)
+                alg_loop[alg] += l
+            except OpenSeesFailed as e:
+                alg_failed[alg] = str(e)
+        print(f"rep {rep + 1}/{args.reps}: load {loads[-1]:.2f}, tsim off {tsim_off[-1]:.3f} s "
+              f"(full Newton {tsim_full[-1]:.3f} s), tsim HDF5 {tsim_on[-1]:.3f} s, OpenSees {os_loop[-1]:.3f} s"
+              + "".join(f", {a} {alg_loop[a][-1]:.3f} s" for a in algorithms if a not in alg_failed),
+              file=sys.stderr)
     others = {}
     if args.compare_systems:
         for s in ["BandSPD", "ProfileSPD", "BandGeneral", "FullGeneral", "UmfPack"]:
@@ -395,7 +422,10 @@ def main():
 
     # Table.
     med = statistics.median
-    t_off, t_on, t_os, t_build = med(tsim_off), med(tsim_on), med(os_loop), med(os_build)
+    t_off, t_full, t_on, t_os, t_build = med(tsim_off), med(tsim_full), med(tsim_on), med(os_loop), med(os_build)
+    alg_med = {a: med(t) for a, t in alg_loop.items() if a not in alg_failed}
+    fastest = min([("Newton", t_os)] + list(alg_med.items()), key=lambda kv: kv[1])
+    ref_final = case["position"][-1]
     m = machine()
     versions = {
         "tsim": sh([str(tsim), "--version"]).removeprefix("tsim "),
@@ -449,18 +479,34 @@ def main():
         f"stages not counted). OpenSees: one `analyze({steps}, {case['dt']:g})` call; model building",
         "(wipe, nodes, materials, elements, loads, analysis objects) timed separately.",
         "",
-        "| program | setting | deployment [s] | steps/s | Newton iterations |",
-        "|---|---|---|---|---|",
-        f"| tsim | outputs off | {t_off:.3f} ({min(tsim_off):.3f}) | {steps / t_off:,.0f} | {tsim_iters} |",
-        f"| tsim | HDF5 every step | {t_on:.3f} ({min(tsim_on):.3f}) | {steps / t_on:,.0f} | |",
-        f"| OpenSeesPy | analysis loop | {t_os:.3f} ({min(os_loop):.3f}) | {steps / t_os:,.0f} | {os_iters} |",
-        f"| OpenSeesPy | model building | {t_build:.4f} ({min(os_build):.4f}) | | |",
+        "| program | setting | deployment [s] | steps/s | Newton iterations | factorizations |",
+        "|---|---|---|---|---|---|",
+        f"| tsim | outputs off (default: tangent reuse) | {t_off:.3f} ({min(tsim_off):.3f}) | {steps / t_off:,.0f} | "
+        f"{tsim_counts['default'][0]} | {tsim_counts['default'][1]} |",
+        f"| tsim | outputs off, full Newton (`newton.tangent: full`) | {t_full:.3f} ({min(tsim_full):.3f}) | "
+        f"{steps / t_full:,.0f} | {tsim_counts['full'][0]} | {tsim_counts['full'][1]} |",
+        f"| tsim | HDF5 every step (default) | {t_on:.3f} ({min(tsim_on):.3f}) | {steps / t_on:,.0f} | | |",
+        f"| OpenSeesPy | Newton, analysis loop | {t_os:.3f} ({min(os_loop):.3f}) | {steps / t_os:,.0f} | {os_iters} | {os_iters} |",
+    ]
+    for alg in algorithms:
+        if alg in alg_failed:
+            lines.append(f"| OpenSeesPy | {alg} | {alg_failed[alg]} | | | |")
+        else:
+            diff = np.linalg.norm(alg_final[alg] - ref_final, axis=1).max() / height
+            lines.append(f"| OpenSeesPy | {alg}, analysis loop (final state {diff:.1e} H from tsim's) | "
+                         f"{alg_med[alg]:.3f} ({min(alg_loop[alg]):.3f}) | {steps / alg_med[alg]:,.0f} | | |")
+    lines += [
+        f"| OpenSeesPy | model building | {t_build:.4f} ({min(os_build):.4f}) | | | |",
         "",
         f"**Ratio tsim / OpenSees (steps/s, tsim outputs off): {t_os / t_off:.2f}× on medians, "
-        f"{min(os_loop) / min(tsim_off):.2f}× on best times** (target ≥ 10×).",
+        f"{min(os_loop) / min(tsim_off):.2f}× on best times** (target ≥ 10×), both with their defaults",
+        f"(tsim: tangent reuse; OpenSees: Newton, as the issue sets). Against OpenSees' fastest algorithm here"
+        f" ({fastest[0]}): {fastest[1] / t_off:.2f}× on medians. Like for like, full Newton on both sides:"
+        f" {t_os / t_full:.2f}× on medians.",
         "",
-        f"Runs [s]: tsim off {', '.join(f'{t:.3f}' for t in tsim_off)}; tsim HDF5 {', '.join(f'{t:.3f}' for t in tsim_on)}; "
-        f"OpenSees {', '.join(f'{t:.3f}' for t in os_loop)}.",
+        f"Runs [s]: tsim off {', '.join(f'{t:.3f}' for t in tsim_off)}; tsim full Newton {', '.join(f'{t:.3f}' for t in tsim_full)}; "
+        f"tsim HDF5 {', '.join(f'{t:.3f}' for t in tsim_on)}; OpenSees {', '.join(f'{t:.3f}' for t in os_loop)}"
+        + "".join(f"; {a} {', '.join(f'{t:.3f}' for t in alg_loop[a])}" for a in algorithms if a not in alg_failed) + ".",
     ]
     if others:
         lines += ["", "OpenSees with other linear systems (analysis loop, median): "

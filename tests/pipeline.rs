@@ -16,7 +16,7 @@ use tsim::law::{ForceLaw, LinearElastic};
 use tsim::model::{Member, MemberKind, Model, Node};
 use tsim::pipeline::{lumped_masses, run_case, CaseSummary};
 use tsim::record::{Energy, Frame, RecordResult, Recorder, Stage};
-use tsim::solve::NewtonSettings;
+use tsim::solve::{NewtonSettings, TangentUpdate};
 use tsim::stage::eigen::{free_masses, modes, tangent_matrix};
 use tsim::stage::formfind::form_find;
 use tsim::stage::substitute::{balanced_forces, substitute};
@@ -129,13 +129,13 @@ fn try_newmark_sdof(
         params,
         rayleigh,
         DampingTangent::LastConverged,
-        &NewtonSettings::default(),
+        NewtonSettings::default(),
     );
     let no_load = |_: f64, f: &mut [f64]| f.fill(0.0);
     let label = |d: usize| format!("dof {d}");
     let mut out = vec![(nm.u[0] - rest_x, nm.v[0])];
     for step in 1..=steps {
-        nm.advance(dt, &NewtonSettings::default(), &no_load, &label)
+        nm.advance(dt, &no_load, &label)
             .map_err(|e| format!("step {step}: {e:?}"))?;
         out.push((nm.u[0] - rest_x, nm.v[0]));
     }
@@ -276,6 +276,46 @@ fn newmark_newton_floor_at_small_steps() {
     assert!(try_newmark_sdof(m, k, 0.0, 0.01, 0.0, dt, 2000, rayleigh).is_ok(), "at the origin");
     if let Err(e) = try_newmark_sdof(m, k, 1.0, 0.01, 0.0, dt, 2000, rayleigh) {
         panic!("the same oscillator 1 m from the origin: {e}");
+    }
+}
+
+/// Tangent reuse on a linear problem: the step matrix M/(βΔt²) + γ/(βΔt)·C + K never
+/// changes, so one factorization serves every step of one Δt, and a new Δt (as a step cut
+/// makes) takes exactly one more. The iterates are full Newton's, bit for bit: the held
+/// factorization is of the identical matrix.
+#[test]
+fn newmark_reuses_the_factorization_of_a_linear_problem() {
+    let run = |tangent: TangentUpdate| {
+        let (model, elements) = sdof(800.0, 1.0, 1.0, 0.01);
+        let dofs = DofMap::new(&model, &[]);
+        let asm = Assembly::new(&model, &elements, &dofs, model.positions());
+        let params = NewmarkParams {
+            dt: 0.02,
+            max_cuts: 0,
+            ..Default::default()
+        };
+        let newton = NewtonSettings {
+            tangent,
+            ..Default::default()
+        };
+        let rayleigh = Rayleigh { alpha: 0.8, beta: 0.002 };
+        let mut nm = Newmark::new(asm, vec![2.0], vec![0.3], vec![0.0], params, rayleigh, DampingTangent::LastConverged, newton);
+        let no_load = |_: f64, f: &mut [f64]| f.fill(0.0);
+        (0..100)
+            .map(|step| {
+                let dt = if step < 50 { 0.02 } else { 0.01 };
+                let report = nm.advance(dt, &no_load, &|d| format!("dof {d}")).unwrap();
+                (report.iterations, report.factorizations, nm.u[0])
+            })
+            .collect::<Vec<_>>()
+    };
+    let (reuse, full) = (run(TangentUpdate::Reuse), run(TangentUpdate::Full));
+    let factorizations: Vec<usize> = reuse.iter().map(|s| s.1).collect();
+    assert_eq!(factorizations.iter().sum::<usize>(), 2, "{factorizations:?}");
+    assert_eq!((factorizations[0], factorizations[50]), (1, 1), "{factorizations:?}");
+    for (step, (r, f)) in reuse.iter().zip(&full).enumerate() {
+        assert_eq!(f.0, f.1, "step {step}: full Newton factors at every iteration");
+        assert_eq!((r.0, r.2), (f.0, f.2), "step {step}: (iterations, x) with reuse vs full Newton");
     }
 }
 
@@ -497,10 +537,12 @@ fn paper_model_eigen_analysis() {
 
 /// The energy ledger of every recorded step, per stage: an independent check of the
 /// summary's figures (configs/paper.yaml records every step, `outputs.every: 1`).
+/// Energy of every frame, and the node positions of every deployment frame.
 #[derive(Default)]
 struct EnergyLog {
     stage: Option<Stage>,
     frames: Vec<(Stage, f64, Energy)>,
+    deployment: Vec<Vec<Vector3<f64>>>,
 }
 
 impl Recorder for EnergyLog {
@@ -509,8 +551,11 @@ impl Recorder for EnergyLog {
         Ok(())
     }
     fn frame(&mut self, frame: &Frame) -> RecordResult {
-        self.frames
-            .push((self.stage.expect("frame inside a stage"), frame.time, frame.energy));
+        let stage = self.stage.expect("frame inside a stage");
+        self.frames.push((stage, frame.time, frame.energy));
+        if stage == Stage::Deployment {
+            self.deployment.push(frame.positions.to_vec());
+        }
         Ok(())
     }
 }
@@ -519,6 +564,7 @@ struct PaperRun {
     cfg: CaseConfig,
     summary: CaseSummary,
     log: Vec<(Stage, f64, Energy)>,
+    deployment: Vec<Vec<Vector3<f64>>>,
 }
 
 impl PaperRun {
@@ -541,6 +587,7 @@ fn paper_run() -> &'static PaperRun {
             cfg,
             summary,
             log: log.frames,
+            deployment: log.deployment,
         }
     })
 }
@@ -700,4 +747,43 @@ fn deployment_returns_to_prefold_shape() {
         rise.1,
         t.max_kinetic
     );
+}
+
+/// Tangent reuse (the default in time stepping) against full Newton on the paper's
+/// deployment: both meet the same tolerances at every step, so they must follow the same
+/// trajectory to within what those tolerances leave open. Each step's solution is fixed
+/// to its last increment, ≤ 1e-10 × model size ≈ 1.3e-10 H; the damped deployment does not
+/// amplify such differences (measured: max 4e-11 H on configs/bench_elastic.yaml). 1e-8 H
+/// allows 75 steps' worth of tolerance to pile up, and is five orders below the shape
+/// error the deployment check accepts (1e-2 H).
+#[test]
+fn deployment_with_tangent_reuse_follows_full_newton() {
+    let run = paper_run();
+    let d = run.summary.deployment.as_ref().expect("deployment ran");
+    assert_eq!(run.cfg.newton.tangent, TangentUpdate::Auto, "the shared run uses the default");
+    let mut cfg = run.cfg.clone();
+    cfg.newton.tangent = TangentUpdate::Full;
+    cfg.free_vibration = None;
+    let mut log = EnergyLog::default();
+    let full = run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("full Newton pipeline failed: {e}"));
+    let f = full.deployment.as_ref().expect("deployment ran");
+    let height = run.summary.formfinding.as_ref().expect("the paper case form-finds").height;
+    let worst = run
+        .deployment
+        .iter()
+        .zip(&log.deployment)
+        .flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| (p - q).norm()))
+        .fold(0.0, f64::max);
+    eprintln!(
+        "deployment, reuse vs full Newton: max position difference {:.2e} H; factorizations {} vs {} ({} vs {} iterations)",
+        worst / height,
+        d.transient.factorizations,
+        f.transient.factorizations,
+        d.transient.newton_iterations,
+        f.transient.newton_iterations
+    );
+    assert_eq!(log.deployment.len(), run.deployment.len());
+    assert!(worst <= 1e-8 * height, "max position difference {:.3e} H", worst / height);
+    assert_eq!(f.transient.factorizations, f.transient.newton_iterations);
+    assert!(d.transient.factorizations < d.transient.newton_iterations / 2);
 }

@@ -56,6 +56,8 @@ pub struct Newmark<'a> {
     pub params: NewmarkParams,
     pub rayleigh: Rayleigh,
     pub tangent: DampingTangent,
+    /// Newton settings of every step (tolerances, linear solver, tangent reuse).
+    pub newton: NewtonSettings,
     /// Lumped mass per free DOF [kg].
     pub mass: Vec<f64>,
     /// Free coordinates, velocities, accelerations of the last converged state.
@@ -75,6 +77,8 @@ pub struct Newmark<'a> {
     pub time: f64,
     /// The Newton workspace, taken out while a step runs.
     ws: Option<NewtonWorkspace>,
+    /// Step size of the step matrix whose factorization `ws` may hold.
+    ws_dt: f64,
     /// Step buffers: predictor base, trial coordinates, load, velocities and damping force.
     base: Vec<f64>,
     trial: Vec<f64>,
@@ -102,17 +106,18 @@ impl<'a> Newmark<'a> {
         params: NewmarkParams,
         rayleigh: Rayleigh,
         tangent: DampingTangent,
-        newton: &NewtonSettings,
+        newton: NewtonSettings,
     ) -> Self {
         let n = mass.len();
         let u = asm.free_coordinates();
-        let ws = Some(asm.workspace(newton.linear_solver));
+        let ws = Some(asm.workspace(&newton, true));
         let mut s = Newmark {
             damp_states: asm.states.clone(),
             asm,
             params,
             rayleigh,
             tangent,
+            newton,
             mass,
             u,
             v,
@@ -123,6 +128,7 @@ impl<'a> Newmark<'a> {
             initial_energy: 0.0,
             time: 0.0,
             ws,
+            ws_dt: params.dt,
             base: vec![0.0; n],
             trial: vec![0.0; n],
             f_next: vec![0.0; n],
@@ -163,32 +169,26 @@ impl<'a> Newmark<'a> {
 
     /// Advances by `dt`, cutting the step in halves (recursively, `max_cuts` deep) where
     /// Newton fails. `load(t, f)` writes the external force on the free DOFs at time t.
-    pub fn advance(
-        &mut self,
-        dt: f64,
-        newton_settings: &NewtonSettings,
-        load: &dyn Fn(f64, &mut [f64]),
-        label: &dyn Fn(usize) -> String,
-    ) -> Result<NewtonReport, SolveError> {
-        self.advance_cut(dt, 0, newton_settings, load, label)
+    pub fn advance(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64]), label: &dyn Fn(usize) -> String) -> Result<NewtonReport, SolveError> {
+        self.advance_cut(dt, 0, load, label)
     }
 
     fn advance_cut(
         &mut self,
         dt: f64,
         depth: u32,
-        settings: &NewtonSettings,
         load: &dyn Fn(f64, &mut [f64]),
         label: &dyn Fn(usize) -> String,
     ) -> Result<NewtonReport, SolveError> {
-        match self.step(dt, settings, load, label) {
+        match self.step(dt, load, label) {
             Ok(r) => Ok(r),
             Err(e) if depth >= self.params.max_cuts => Err(e),
             Err(_) => {
-                let first = self.advance_cut(dt / 2.0, depth + 1, settings, load, label)?;
-                let second = self.advance_cut(dt / 2.0, depth + 1, settings, load, label)?;
+                let first = self.advance_cut(dt / 2.0, depth + 1, load, label)?;
+                let second = self.advance_cut(dt / 2.0, depth + 1, load, label)?;
                 Ok(NewtonReport {
                     iterations: first.iterations + second.iterations,
+                    factorizations: first.factorizations + second.factorizations,
                     residual: second.residual,
                 })
             }
@@ -196,26 +196,27 @@ impl<'a> Newmark<'a> {
     }
 
     /// One Newmark step of size dt; on failure the state is left as it was.
-    fn step(
-        &mut self,
-        dt: f64,
-        settings: &NewtonSettings,
-        load: &dyn Fn(f64, &mut [f64]),
-        label: &dyn Fn(usize) -> String,
-    ) -> Result<NewtonReport, SolveError> {
+    fn step(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64]), label: &dyn Fn(usize) -> String) -> Result<NewtonReport, SolveError> {
         let n = self.mass.len();
         let t_next = self.time + dt;
         load(t_next, &mut self.f_next);
         let (beta, gamma) = (self.params.beta, self.params.gamma);
-        // Predictor: u_{n+1} = u_n + dt v_n + dt² (½ − β) a_n + β dt² a_{n+1}.
+        // u_{n+1} = base + β dt² a_{n+1}, base = u_n + dt v_n + dt² (½ − β) a_n. Newton
+        // starts from a_{n+1} = a_n (constant acceleration), the usual predictor.
         for i in 0..n {
             self.base[i] = self.u[i] + dt * self.v[i] + dt * dt * (0.5 - beta) * self.a[i];
+            self.trial[i] = self.base[i] + beta * dt * dt * self.a[i];
         }
-        self.trial.copy_from_slice(&self.u);
         let length = self.asm.model.size();
         let mut trial = std::mem::take(&mut self.trial);
         let mut ws = self.ws.take().expect("workspace present between steps");
-        let result = newton(&mut StepProblem { nm: self, dt }, &mut trial, settings, length, label, &mut ws);
+        if dt != self.ws_dt {
+            // M/(βΔt²) dominates the step matrix: a factorization for another Δt is no use.
+            ws.invalidate();
+            self.ws_dt = dt;
+        }
+        let settings = self.newton;
+        let result = newton(&mut StepProblem { nm: self, dt }, &mut trial, &settings, length, label, &mut ws);
         self.ws = Some(ws);
         let report = match result {
             Ok(report) => report,
@@ -275,31 +276,30 @@ struct StepProblem<'s, 'a> {
     dt: f64,
 }
 
+impl StepProblem<'_, '_> {
+    /// The Newmark coefficients c_a = 1/(βΔt²) and c_v = γ/(βΔt) of a = c_a (u − base) and
+    /// the step's velocity.
+    fn coefficients(&self) -> (f64, f64) {
+        let (beta, gamma, dt) = (self.nm.params.beta, self.nm.params.gamma, self.dt);
+        (1.0 / (beta * dt * dt), gamma / (beta * dt))
+    }
+}
+
 impl Residual for StepProblem<'_, '_> {
-    fn evaluate(&mut self, u: &[f64], r: &mut [f64], k: &mut dyn TangentSink) -> Scale {
+    fn residual(&mut self, u: &[f64], r: &mut [f64]) -> Scale {
+        let (c_a, _) = self.coefficients();
         let nm = &mut *self.nm;
-        let (beta, gamma, dt) = (nm.params.beta, nm.params.gamma, self.dt);
+        let (gamma, dt) = (nm.params.gamma, self.dt);
         nm.asm.set_free(u);
         let n = u.len();
-        let c_a = 1.0 / (beta * dt * dt);
-        let c_v = gamma / (beta * dt);
         for i in 0..n {
             nm.v_next[i] = nm.v[i] + dt * ((1.0 - gamma) * nm.a[i] + gamma * c_a * (u[i] - nm.base[i]));
         }
-        let (alpha_r, beta_r) = (nm.rayleigh.alpha, nm.rayleigh.beta);
-        // Jacobian: K_T + β_R c_v K_damp, then M (c_a + α_R c_v) on the diagonal below.
-        assemble_tangents(
-            nm.asm.model,
-            nm.asm.dofs,
-            &[(&nm.asm.states, 1.0), (nm.damping_states(), beta_r * c_v)],
-            k,
-        );
         let mut fd = std::mem::take(&mut nm.fd_next);
         damping_force(&nm.asm, &nm.rayleigh, &nm.mass, nm.damping_states(), &nm.v_next, &mut fd);
         let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);
         for i in 0..n {
             let m = nm.mass[i];
-            k.add(i, i, m * (c_a + alpha_r * c_v));
             let inertia = m * c_a * (u[i] - nm.base[i]);
             r[i] = nm.f_next[i] - inertia - fd[i] - nm.asm.p_free(i);
             applied = applied.max(nm.f_next[i].abs()).max(inertia.abs());
@@ -313,6 +313,22 @@ impl Residual for StepProblem<'_, '_> {
         Scale {
             roundoff: scale.roundoff + 64.0 * f64::EPSILON * inertia_floor,
             ..scale
+        }
+    }
+
+    /// K_T + β_R c_v K_damp + M (c_a + α_R c_v).
+    fn tangent(&mut self, k: &mut dyn TangentSink) {
+        let (c_a, c_v) = self.coefficients();
+        let nm = &*self.nm;
+        let (alpha_r, beta_r) = (nm.rayleigh.alpha, nm.rayleigh.beta);
+        assemble_tangents(
+            nm.asm.model,
+            nm.asm.dofs,
+            &[(&nm.asm.states, 1.0), (nm.damping_states(), beta_r * c_v)],
+            k,
+        );
+        for (i, m) in nm.mass.iter().enumerate() {
+            k.add(i, i, m * (c_a + alpha_r * c_v));
         }
     }
 }

@@ -1,13 +1,16 @@
-//! The linear solves inside Newton: a dense LU for small models, a sparse Cholesky with
-//! its symbolic analysis done once for large ones. Both factor in place into buffers
-//! allocated when the solver is built, so a Newton iteration allocates nothing.
+//! The linear solves inside Newton: a dense Cholesky (LU fallback) for small models, a
+//! sparse Cholesky (LU fallback) with its symbolic analysis done once for large ones. Both
+//! factor in place into buffers allocated when the solver is built, so a Newton iteration
+//! allocates nothing, and keep the factorization until the next one, so Newton may solve
+//! with it again.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::linalg::cholesky::llt::{factor as llt_factor, solve as llt_solve};
 use faer::linalg::lu::partial_pivoting::{factor as lu_factor, solve as lu_solve};
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering};
-use faer::sparse::linalg::lu::{factorize_symbolic_lu, NumericLu, SymbolicLu};
+use faer::perm::PermRef;
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering};
+use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuRef, NumericLu, SymbolicLu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
 
@@ -43,13 +46,25 @@ impl TangentSink for Mat<f64> {
     }
 }
 
-/// A tangent matrix that is assembled, then factored and solved once per Newton iteration.
+/// A tangent matrix that is assembled, factored, then solved with as often as Newton likes.
 pub trait TangentSolver: TangentSink + Send {
     /// Zeroes the matrix for the next assembly.
     fn clear(&mut self);
-    /// Solves K x = rhs in place (rhs becomes x); K is consumed (clear before reuse).
+    /// Factors the assembled matrix, replacing the previous factorization; the assembled
+    /// matrix is consumed (clear before the next assembly).
+    fn factor(&mut self) -> Result<(), LinearError>;
+    /// Solves K x = rhs in place (rhs becomes x) with the last factorization.
     fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError>;
 }
+
+/// Which factorization a solver holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Factored {
+    None,
+    Cholesky,
+    Lu,
+}
+
 
 /// Relative pivot size below which a matrix is taken as singular: about 1e3 × machine ε,
 /// far below any pivot of a stable structure (struts/cables stiffness ratio ~1e9 still
@@ -67,6 +82,7 @@ pub struct DenseSolver {
     perm: Vec<usize>,
     perm_inv: Vec<usize>,
     mem: MemBuffer,
+    factored: Factored,
 }
 
 impl DenseSolver {
@@ -83,6 +99,7 @@ impl DenseSolver {
             perm: vec![0; n],
             perm_inv: vec![0; n],
             mem: MemBuffer::new(req),
+            factored: Factored::None,
         }
     }
 }
@@ -98,9 +115,9 @@ impl TangentSolver for DenseSolver {
         self.k.fill(0.0);
     }
 
-    fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
+    fn factor(&mut self) -> Result<(), LinearError> {
         let n = self.k.nrows();
-        let x = faer::ColMut::from_slice_mut(rhs);
+        self.factored = Factored::None;
         self.work.copy_from(&self.k);
         let llt = llt_factor::cholesky_in_place(
             self.work.as_mut(),
@@ -110,16 +127,15 @@ impl TangentSolver for DenseSolver {
             Default::default(),
         );
         if llt.is_ok() {
-            llt_solve::solve_in_place_with_conj(self.work.as_ref(), Conj::No, x.as_mat_mut(), Par::Seq, MemStack::new(&mut self.mem));
+            self.factored = Factored::Cholesky;
             return Ok(());
         }
-        let stack = MemStack::new(&mut self.mem);
-        let (_, perm) = lu_factor::lu_in_place(
+        lu_factor::lu_in_place(
             self.k.as_mut(),
             &mut self.perm,
             &mut self.perm_inv,
             Par::Seq,
-            stack,
+            MemStack::new(&mut self.mem),
             Default::default(),
         );
         let max = (0..n).map(|j| self.k[(j, j)].abs()).fold(0.0, f64::max);
@@ -130,8 +146,21 @@ impl TangentSolver for DenseSolver {
         {
             return Err(LinearError::Singular { dof: Some(dof), ratio });
         }
+        self.factored = Factored::Lu;
+        Ok(())
+    }
+
+    fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
+        let x = faer::ColMut::from_slice_mut(rhs).as_mat_mut();
         let stack = MemStack::new(&mut self.mem);
-        lu_solve::solve_in_place_with_conj(self.k.as_ref(), self.k.as_ref(), perm, Conj::No, x.as_mat_mut(), Par::Seq, stack);
+        match self.factored {
+            Factored::Cholesky => llt_solve::solve_in_place_with_conj(self.work.as_ref(), Conj::No, x, Par::Seq, stack),
+            Factored::Lu => {
+                let perm = PermRef::new_checked(&self.perm, &self.perm_inv, self.k.nrows());
+                lu_solve::solve_in_place_with_conj(self.k.as_ref(), self.k.as_ref(), perm, Conj::No, x, Par::Seq, stack)
+            }
+            Factored::None => panic!("TangentSolver::solve before a successful factor()"),
+        }
         Ok(())
     }
 }
@@ -151,6 +180,7 @@ pub struct SparseSolver {
     l_values: Vec<f64>,
     mem: MemBuffer,
     lu: Option<(SymbolicLu<usize>, NumericLu<usize, f64>, MemBuffer)>,
+    factored: Factored,
     /// Per element, the value slot of each of its 36 block entries (`u32::MAX`: not
     /// free), found once by binary search so that assembly is a direct scatter.
     slots: Vec<Option<[u32; 36]>>,
@@ -190,6 +220,7 @@ impl SparseSolver {
             l_values,
             mem: MemBuffer::new(req),
             lu: None,
+            factored: Factored::None,
             slots: Vec::new(),
         }
     }
@@ -236,23 +267,22 @@ impl TangentSolver for SparseSolver {
         self.values.fill(0.0);
     }
 
-    fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
-        let n = rhs.len();
+    fn factor(&mut self) -> Result<(), LinearError> {
+        let n = self.col_ptr.len() - 1;
+        self.factored = Factored::None;
         let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
         let a = SparseColMatRef::new(structure, &self.values);
-        let stack = MemStack::new(&mut self.mem);
         let llt = self.symbolic.factorize_numeric_llt(
             &mut self.l_values,
             a,
             Side::Lower,
             LltRegularization::default(),
             Par::Seq,
-            stack,
+            MemStack::new(&mut self.mem),
             Default::default(),
         );
-        let x = faer::ColMut::from_slice_mut(rhs);
-        if let Ok(llt) = llt {
-            llt.solve_in_place_with_conj(Conj::No, x.as_mat_mut(), Par::Seq, MemStack::new(&mut self.mem));
+        if llt.is_ok() {
+            self.factored = Factored::Cholesky;
             return Ok(());
         }
         let (symbolic, numeric, mem) = self.lu.get_or_insert_with(|| {
@@ -263,14 +293,30 @@ impl TangentSolver for SparseSolver {
             ]);
             (symbolic, NumericLu::new(), MemBuffer::new(req))
         });
-        let lu = symbolic
+        symbolic
             .factorize_numeric_lu(numeric, a, Par::Seq, MemStack::new(mem), Default::default())
             .map_err(|_| LinearError::Singular { dof: None, ratio: 0.0 })?;
-        lu.solve_in_place_with_conj(Conj::No, x.as_mat_mut(), Par::Seq, MemStack::new(mem));
-        if rhs.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(LinearError::Singular { dof: None, ratio: 0.0 })
+        self.factored = Factored::Lu;
+        Ok(())
+    }
+
+    fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
+        let x = faer::ColMut::from_slice_mut(rhs).as_mat_mut();
+        match (self.factored, &mut self.lu) {
+            (Factored::Cholesky, _) => {
+                LltRef::new(&self.symbolic, &self.l_values).solve_in_place_with_conj(Conj::No, x, Par::Seq, MemStack::new(&mut self.mem));
+                Ok(())
+            }
+            (Factored::Lu, Some((symbolic, numeric, mem))) => {
+                LuRef::new_unchecked(symbolic, numeric).solve_in_place_with_conj(Conj::No, x, Par::Seq, MemStack::new(mem));
+                // The sparse LU does not report a vanishing pivot; it shows as inf/NaN.
+                if rhs.iter().all(|v| v.is_finite()) {
+                    Ok(())
+                } else {
+                    Err(LinearError::Singular { dof: None, ratio: 0.0 })
+                }
+            }
+            _ => panic!("TangentSolver::solve before a successful factor()"),
         }
     }
 }

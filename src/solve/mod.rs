@@ -5,4 +5,7 @@ mod linear;
 mod newton;
 
 pub use linear::{DenseSolver, LinearError, SparseSolver, TangentSink, TangentSolver};
-pub use newton::{newton, LinearSolverChoice, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError};
+pub use newton::{
+    newton, LinearSolverChoice, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentUpdate,
+    REUSE_CONTRACTION,
+};

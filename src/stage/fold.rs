@@ -65,7 +65,7 @@ impl Folding {
         let h0 = height(&x0);
         let asm = Assembly::new(model, elements, &dofs, x0);
         let u = asm.free_coordinates();
-        let ws = asm.workspace(self.newton.linear_solver);
+        let ws = asm.workspace(&self.newton, false);
         let mut st = FoldState {
             problem: StaticEquilibrium {
                 asm,

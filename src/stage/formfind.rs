@@ -25,7 +25,7 @@ pub fn form_find(model: &Model, elements: &Elements, settings: &NewtonSettings) 
     let dofs = DofMap::new(model, &[]);
     let asm = Assembly::new(model, elements, &dofs, model.positions());
     let mut u = asm.free_coordinates();
-    let mut ws = asm.workspace(settings.linear_solver);
+    let mut ws = asm.workspace(settings, false);
     let mut problem = StaticEquilibrium {
         asm,
         load: vec![0.0; dofs.len()],

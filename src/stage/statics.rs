@@ -10,13 +10,16 @@ pub struct StaticEquilibrium<'a> {
 }
 
 impl Residual for StaticEquilibrium<'_> {
-    fn evaluate(&mut self, u: &[f64], r: &mut [f64], k: &mut dyn TangentSink) -> Scale {
+    fn residual(&mut self, u: &[f64], r: &mut [f64]) -> Scale {
         self.asm.set_free(u);
         for (i, ri) in r.iter_mut().enumerate() {
             *ri = self.load[i] - self.asm.p_free(i);
         }
-        self.asm.add_tangent(1.0, k);
         let applied = self.load.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
         self.asm.scale(applied)
+    }
+
+    fn tangent(&mut self, k: &mut dyn TangentSink) {
+        self.asm.add_tangent(1.0, k);
     }
 }
