@@ -10,11 +10,14 @@ pub struct OgdenTerm {
 /// Uniaxial nominal stress of the incompressible Ogden solid (paper eq 5) and its slope:
 /// F(λ) = Σ μ_i (λ^(α_i−1) − λ^(−1−α_i/2)).
 pub fn ogden_nominal_stress(terms: &[OgdenTerm], lambda: f64) -> (f64, f64) {
+    let ln = lambda.ln();
     terms.iter().fold((0.0, 0.0), |(f, df), t| {
         let a = t.alpha;
-        // One power per term: with x = λ^(α/2), λ^(α−1) = x²/λ and λ^(−1−α/2) = 1/(λx);
-        // the slope's powers are these over λ. (pow dominated the solver's profile.)
-        let x = lambda.powf(0.5 * a);
+        // One exp per term and one log in all (powf is a log and an exp, and dominated
+        // the solver's profile): with x = λ^(α/2) = exp(α/2 · ln λ), λ^(α−1) = x²/λ and
+        // λ^(−1−α/2) = 1/(λx); the slope's powers are these over λ. The exponent's
+        // round-off, |α/2 · ln λ| ε, is a few ulp for any stretch a cord reaches.
+        let x = (0.5 * a * ln).exp();
         let (p, q) = (x * x / lambda, 1.0 / (lambda * x));
         (f + t.mu * (p - q), df + t.mu * ((a - 1.0) * p + (1.0 + a / 2.0) * q) / lambda)
     })
@@ -22,10 +25,11 @@ pub fn ogden_nominal_stress(terms: &[OgdenTerm], lambda: f64) -> (f64, f64) {
 
 /// ∫ F dλ of the Ogden curve: Σ μ_i/α_i (λ^α_i + 2 λ^(−α_i/2)).
 fn ogden_energy_density(terms: &[OgdenTerm], lambda: f64) -> f64 {
+    let ln = lambda.ln();
     terms
         .iter()
         .map(|t| {
-            let x = lambda.powf(0.5 * t.alpha);
+            let x = (0.5 * t.alpha * ln).exp();
             t.mu / t.alpha * (x * x + 2.0 / x)
         })
         .sum()
