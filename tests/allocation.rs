@@ -1,0 +1,105 @@
+//! The hot loop allocates nothing: once a time-stepping stage is under way, a Newmark step
+//! (Newton iterations, assembly, factorization, solves, the frame handed to the recorders)
+//! makes no heap allocation, with the dense and with the sparse solver.
+//!
+//! A counting global allocator (this test binary only) counts the allocations of the
+//! current thread; a recorder notes the count at every frame, so the count between two
+//! frames is what one step allocated.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use tsim::config::parse_case;
+use tsim::pipeline::run_case;
+use tsim::record::{Frame, RecordResult, Recorder, Stage};
+use tsim::solve::LinearSolverChoice;
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+fn count() {
+    // try_with: a thread's allocations during its TLS teardown are not counted.
+    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+}
+
+fn allocations() -> u64 {
+    ALLOCATIONS.with(Cell::get)
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count();
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        count();
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count();
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// The allocation count at every deployment frame (storage reserved up front).
+struct StepAllocations {
+    stage: Option<Stage>,
+    counts: Vec<u64>,
+}
+
+impl Recorder for StepAllocations {
+    fn begin_stage(&mut self, stage: Stage) -> RecordResult {
+        self.stage = Some(stage);
+        Ok(())
+    }
+    fn frame(&mut self, _frame: &Frame) -> RecordResult {
+        if self.stage == Some(Stage::Deployment) {
+            assert!(self.counts.len() < self.counts.capacity(), "reserve more frames");
+            self.counts.push(allocations());
+        }
+        Ok(())
+    }
+}
+
+/// Allocations of each deployment step of the paper case (0.3 s) with `solver`.
+fn step_allocations(solver: LinearSolverChoice) -> Vec<u64> {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/paper.yaml");
+    let mut cfg = parse_case(&std::fs::read_to_string(path).unwrap(), path).unwrap();
+    cfg.free_vibration = None;
+    cfg.deployment.as_mut().unwrap().duration = 0.3;
+    cfg.newton.linear_solver = solver;
+    let mut rec = StepAllocations {
+        stage: None,
+        counts: Vec::with_capacity(1000),
+    };
+    run_case(&cfg, &mut rec).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(rec.counts.len(), 301, "one frame per step and the initial state");
+    rec.counts.windows(2).map(|w| w[1] - w[0]).collect()
+}
+
+/// After the first step (which fills the sparse solver's cached element slots and may
+/// take the solver's first factorization), no step allocates. The launch load acts during
+/// the first 50 steps and then stops, so both regimes are covered.
+#[test]
+fn newmark_steps_do_not_allocate() {
+    for solver in [LinearSolverChoice::Dense, LinearSolverChoice::Sparse] {
+        let per_step = step_allocations(solver);
+        let allocating: Vec<(usize, u64)> = per_step
+            .iter()
+            .enumerate()
+            .skip(1)
+            .filter(|&(_, &n)| n > 0)
+            .map(|(i, &n)| (i + 1, n))
+            .collect();
+        eprintln!("{solver:?}: first step {} allocations, later steps {allocating:?}", per_step[0]);
+        assert!(allocating.is_empty(), "{solver:?}: (step, allocations) {allocating:?}");
+    }
+}
