@@ -20,8 +20,9 @@
 use super::{EigenRecord, FormFindRecord, Frame, ModelRecord, RecordResult, Recorder, Stage};
 use crate::model::AXES;
 use hdf5::types::{FixedUnicode, VarLenUnicode};
-use hdf5::{Dataset, Dataspace, Datatype, File, Group, H5Type, Hyperslab, Location, SliceOrIndex};
-use hdf5_sys::h5::herr_t;
+use hdf5::{Dataset, File, Group, H5Type, Location};
+use super::chunk::ChunkEncoder;
+use hdf5_sys::h5::{herr_t, hsize_t};
 use hdf5_sys::h5i::hid_t;
 use nalgebra::Vector3;
 use std::ffi::{c_char, c_uint, CString};
@@ -37,7 +38,8 @@ const CHUNK_BYTES: usize = 1 << 20;
 /// Most steps in one chunk (and so between two SWMR flushes).
 const CHUNK_STEPS: usize = 256;
 /// gzip level: node positions of a moving structure compress about 1.5× at any level, so
-/// the fastest is used (level 4 made the paper case's file only 2 % smaller).
+/// the fastest is used (level 4 made the paper case's file only 2 % smaller). The chunks
+/// are shuffled and deflated by [`ChunkEncoder`], not by HDF5 (see `record/chunk.rs`).
 const GZIP_LEVEL: u8 = 1;
 
 // The high-level dimension-scale API (libhdf5_hl, linked by hdf5-sys's `hl` feature), which
@@ -306,6 +308,7 @@ struct Series {
     written: usize,
     buffered: usize,
     chunk: usize,
+    encoder: ChunkEncoder,
 }
 
 impl Series {
@@ -361,6 +364,7 @@ impl Series {
             written: 0,
             buffered: 0,
             chunk,
+            encoder: ChunkEncoder::new(GZIP_LEVEL.into()),
         })
     }
 
@@ -401,7 +405,7 @@ impl Series {
             return Ok(());
         }
         for (ds, buf) in &mut self.columns {
-            append_rows(ds, self.written, self.buffered, buf)?;
+            append_chunk(ds, self.written, self.buffered, self.chunk, buf, &mut self.encoder)?;
             buf.clear();
         }
         self.written += self.buffered;
@@ -499,34 +503,30 @@ impl Dims {
     }
 }
 
-/// Extends `ds` along its first axis and writes `rows` rows (row-major values) from `start`.
-/// hdf5-metno's `write_slice` wants an n-D ndarray view; a raw `H5Dwrite` with explicit
-/// dataspaces takes the flat buffer as it is.
-fn append_rows(ds: &Dataset, start: usize, rows: usize, values: &[f64]) -> Result<(), Error> {
+/// Extends `ds` along its first axis by `rows` rows (row-major `values`) and stores them as
+/// the chunk that starts at row `start`, a multiple of the chunk length `chunk`: every
+/// block the writer appends fills one chunk (the last of a stage, partly). The chunk is
+/// encoded here and written with `H5Dwrite_chunk`, filter mask 0: both of the dataset's
+/// filters applied.
+fn append_chunk(ds: &Dataset, start: usize, rows: usize, chunk: usize, values: &[f64], encoder: &mut ChunkEncoder) -> Result<(), Error> {
+    assert_eq!(start % chunk, 0, "blocks start on chunk boundaries");
     let mut shape = ds.shape();
     shape[0] = start + rows;
     ds.resize(shape.clone())?;
-    let slab: Vec<SliceOrIndex> = std::iter::once(SliceOrIndex::from(start..start + rows))
-        .chain(shape[1..].iter().map(|_| SliceOrIndex::from(..)))
-        .collect();
-    let file_space = ds.space()?.select(Hyperslab::from(slab))?;
-    shape[0] = rows;
-    let mem_space = Dataspace::try_new(shape)?;
-    let dtype = Datatype::from_type::<f64>()?;
-    assert_eq!(mem_space.size(), values.len(), "block size");
+    let row: usize = shape[1..].iter().product();
+    assert_eq!(values.len(), rows * row, "block size");
+    if row == 0 {
+        return Ok(());
+    }
+    let bytes = encoder.encode(values, chunk * row)?;
+    let offset: Vec<hsize_t> = std::iter::once(start as hsize_t).chain(shape[1..].iter().map(|_| 0)).collect();
     let _lock = hdf5_sys::LOCK.lock();
-    // SAFETY: `values` holds exactly the elements of `mem_space`, in memory order.
+    // SAFETY: `offset` has the dataset's rank and names a chunk inside its new extent;
+    // `bytes` is that chunk after the dataset's filter pipeline.
     let err = unsafe {
-        hdf5_sys::h5d::H5Dwrite(
-            ds.id(),
-            dtype.id(),
-            mem_space.id(),
-            file_space.id(),
-            hdf5_sys::h5p::H5P_DEFAULT,
-            values.as_ptr().cast(),
-        )
+        hdf5_sys::h5d::H5Dwrite_chunk(ds.id(), hdf5_sys::h5p::H5P_DEFAULT, 0, offset.as_ptr(), bytes.len(), bytes.as_ptr().cast())
     };
-    check(err, "H5Dwrite")
+    check(err, "H5Dwrite_chunk")
 }
 
 fn check(err: herr_t, what: &str) -> Result<(), Error> {

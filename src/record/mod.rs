@@ -3,6 +3,7 @@
 //! implementation of [`Recorder`]; [`Recorders`] fans out to several.
 
 mod background;
+mod chunk;
 mod fanout;
 pub mod h5;
 pub mod replay;
