@@ -140,6 +140,13 @@ def test_values_equal_the_written_ones(sample):
         np.testing.assert_allclose(ds.external_work.values, 0.02 * s)
         np.testing.assert_allclose(ds.position.values, x0[None] + 1e-3 * s[:, None, None])
         np.testing.assert_array_equal(ds.member_length.values, np.broadcast_to(1 + s[:, None], (len(s), 50)))
+    # The streamed variables carry the standard shuffle + gzip filters (tsim applies them
+    # itself and stores whole chunks; any HDF5 reader must decode them, as above).
+    with h5py.File(path) as f:
+        for g in STEPS:
+            for name in ("position", "member_force", "kinetic_energy"):
+                d = f[g][name]
+                assert (d.compression, d.compression_opts, d.shuffle) == ("gzip", 1, True), f"{g}/{name}"
     # An energy curve by label: kinetic energy at t = 0.1 s of deployment (step 100).
     dep = xr.open_dataset(path, engine="h5netcdf", group="deployment")
     assert dep.kinetic_energy.sel(time=0.1, method="nearest").item() == pytest.approx(50.0)
