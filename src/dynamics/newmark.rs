@@ -56,8 +56,9 @@ pub struct Newmark<'a> {
     pub params: NewmarkParams,
     pub rayleigh: Rayleigh,
     pub tangent: DampingTangent,
-    /// Newton settings of every step (tolerances, linear solver, tangent reuse).
-    pub newton: NewtonSettings,
+    /// Newton settings of every step (tolerances; the linear solver and tangent reuse
+    /// were fixed with the workspace).
+    newton: NewtonSettings,
     /// Lumped mass per free DOF [kg].
     pub mass: Vec<f64>,
     /// Free coordinates, velocities, accelerations of the last converged state.
