@@ -4,7 +4,7 @@ use crate::config::OutputSpec;
 use std::path::Path;
 
 /// Several recorders behind one: each call goes to all, in order.
-pub struct Recorders(pub Vec<Box<dyn Recorder>>);
+pub struct Recorders(pub Vec<Box<dyn Recorder + Send>>);
 
 impl Recorder for Recorders {
     fn model(&mut self, r: &ModelRecord) -> RecordResult {
@@ -32,33 +32,32 @@ impl Recorder for Recorders {
     }
 }
 
-/// The file recorders a case's `outputs` asks for: `result.h5` and `replay.mcap` in `dir`.
-/// With `background`, each streams on a thread of its own; that pays only when a core is
-/// free for the writers, so the runner asks for it only then (with every core running a
-/// case, writer threads just take turns with the solvers). `outputs.every` is not theirs
-/// to apply: the stages call `frame` only for the steps to record.
+/// The file recorders a case's `outputs` asks for, `result.h5` and `replay.mcap` in `dir`,
+/// as one recorder. With `background`, both stream on one writer thread; that pays only
+/// when a core is free for it, so the runner asks for it only then (with every core
+/// running a case, a writer thread just takes turns with the solvers). One thread, not one
+/// per file: the files together cost about as much CPU as the solver, and three busy
+/// threads on two cores slowed the solver by half again (bench/outputs.md).
+/// `outputs.every` is not theirs to apply: the stages call `frame` only for the steps to
+/// record.
 pub fn file_recorders(
     outputs: &OutputSpec,
     dir: &Path,
     case_id: &str,
     config_yaml: &str,
     background: bool,
-) -> Result<Vec<Box<dyn Recorder>>, Box<dyn std::error::Error + Send + Sync>> {
-    fn boxed<R: Recorder + Send + 'static>(r: R, thread: &str, background: bool) -> Box<dyn Recorder> {
-        if background {
-            Box::new(Background::new(r, thread))
-        } else {
-            Box::new(r)
-        }
-    }
-    let mut out: Vec<Box<dyn Recorder>> = Vec::new();
+) -> Result<Box<dyn Recorder + Send>, Box<dyn std::error::Error + Send + Sync>> {
+    let mut files: Vec<Box<dyn Recorder + Send>> = Vec::new();
     if outputs.hdf5 {
-        let h5 = super::h5::Hdf5Recorder::create(&dir.join("result.h5"), case_id, config_yaml)?;
-        out.push(boxed(h5, "tsim-hdf5", background));
+        files.push(Box::new(super::h5::Hdf5Recorder::create(&dir.join("result.h5"), case_id, config_yaml)?));
     }
     if outputs.mcap {
-        let mcap = super::replay::McapRecorder::create(&dir.join("replay.mcap"), case_id)?;
-        out.push(boxed(mcap, "tsim-mcap", background));
+        files.push(Box::new(super::replay::McapRecorder::create(&dir.join("replay.mcap"), case_id)?));
     }
-    Ok(out)
+    let files = Recorders(files);
+    Ok(if background && !files.0.is_empty() {
+        Box::new(Background::new(files, "tsim-writer"))
+    } else {
+        Box::new(files)
+    })
 }

@@ -69,6 +69,60 @@ const GREY: Color = Color {
     a: 1.0,
 };
 
+/// The repeated `members` field (number 3) of `msg::MemberForces`, encoded once: per
+/// member the record {1: id, 2: force}, whose only changing bytes are the force's eight.
+/// Encoding the 50 records per step through the derive cost as much CPU as the whole
+/// scene; patching eight bytes per member gives the same bytes (tested).
+#[derive(Default)]
+struct MemberRecords {
+    bytes: Vec<u8>,
+    /// Where each member's little-endian force starts in `bytes`.
+    force_at: Vec<usize>,
+}
+
+impl MemberRecords {
+    fn new<'a>(ids: impl Iterator<Item = &'a str>) -> Self {
+        let mut r = MemberRecords::default();
+        for id in ids {
+            // Field 1 (id): tag 0x0a, length, bytes; field 2 (force, 64-bit): tag 0x11, 8 bytes.
+            let inner = 1 + varint_len(id.len()) + id.len() + 1 + 8;
+            r.bytes.push(0x1a); // field 3, length-delimited
+            put_varint(&mut r.bytes, inner);
+            r.bytes.push(0x0a);
+            put_varint(&mut r.bytes, id.len());
+            r.bytes.extend_from_slice(id.as_bytes());
+            r.bytes.push(0x11);
+            r.force_at.push(r.bytes.len());
+            r.bytes.extend_from_slice(&[0; 8]);
+        }
+        r
+    }
+
+    fn with_forces(&mut self, forces: &[f64]) -> &[u8] {
+        for (&at, force) in self.force_at.iter().zip(forces) {
+            self.bytes[at..at + 8].copy_from_slice(&force.to_le_bytes());
+        }
+        &self.bytes
+    }
+}
+
+fn varint_len(mut v: usize) -> usize {
+    let mut n = 1;
+    while v >= 0x80 {
+        v >>= 7;
+        n += 1;
+    }
+    n
+}
+
+fn put_varint(out: &mut Vec<u8>, mut v: usize) {
+    while v >= 0x80 {
+        out.push((v as u8 & 0x7f) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
 /// Messages of our own topics. The derive names each schema `<lowercase>.<Name>`.
 mod msg {
     #[derive(foxglove::Encode)]
@@ -111,8 +165,8 @@ pub struct McapRecorder {
     clock: Clock,
     /// Ends and kind of each member.
     members: Vec<([usize; 2], MemberKind)>,
-    /// The `/tsim/members` message, kept between steps: ids are set once, forces per step.
-    member_forces: msg::MemberForces,
+    /// The `/tsim/members` message's member records, encoded once.
+    member_records: MemberRecords,
     /// Point buffers of the scene's lines, one per (kind, state), reused between steps.
     points: [Vec<Point3>; 6],
     stage: Option<Stage>,
@@ -157,11 +211,7 @@ impl McapRecorder {
             channels,
             clock: Clock::default(),
             members: Vec::new(),
-            member_forces: msg::MemberForces {
-                stage: String::new(),
-                step: 0,
-                members: Vec::new(),
-            },
+            member_records: MemberRecords::default(),
             points: Default::default(),
             stage: None,
             buf: Vec::new(),
@@ -177,6 +227,27 @@ impl McapRecorder {
             sequence: 0,
             log_time,
             publish_time: log_time,
+        };
+        Ok(writer.write_to_known_channel(&header, &self.buf)?)
+    }
+
+    /// `/tsim/members`: the message head (stage, step) encoded as `msg::MemberForces`
+    /// encodes it, then the member records with this step's forces patched in.
+    fn log_members(&mut self, stage: Stage, step: usize, ns: u64, forces: &[f64]) -> Result<(), Error> {
+        let writer = self.writer.as_mut().ok_or("MCAP recorder already finished")?;
+        self.buf.clear();
+        let head = msg::MemberForces {
+            stage: stage.name().into(),
+            step: step as u64,
+            members: Vec::new(),
+        };
+        head.encode(&mut self.buf).map_err(|e| e.to_string())?;
+        self.buf.extend_from_slice(self.member_records.with_forces(forces));
+        let header = mcap::records::MessageHeader {
+            channel_id: self.channels.members,
+            sequence: 0,
+            log_time: ns,
+            publish_time: ns,
         };
         Ok(writer.write_to_known_channel(&header, &self.buf)?)
     }
@@ -199,17 +270,7 @@ impl McapRecorder {
         let scene = self.scene(ns, positions, forces);
         self.log(self.channels.scene, ns, &scene)?;
         self.reclaim(scene);
-        let mut members = std::mem::take(&mut self.member_forces);
-        if members.stage != stage.name() {
-            members.stage = stage.name().into();
-        }
-        members.step = step as u64;
-        for (m, &force) in members.members.iter_mut().zip(forces) {
-            m.force = force;
-        }
-        let logged = self.log(self.channels.members, ns, &members);
-        self.member_forces = members;
-        logged?;
+        self.log_members(stage, step, ns, forces)?;
         if let Some(e) = energy {
             let total = e.kinetic + e.strain + e.damping - e.external;
             let energy = msg::Energy {
@@ -368,15 +429,7 @@ fn nanos(t: f64) -> u64 {
 impl Recorder for McapRecorder {
     fn model(&mut self, record: &ModelRecord) -> RecordResult {
         self.members = record.model.members.iter().map(|m| (m.nodes, m.kind)).collect();
-        self.member_forces.members = record
-            .model
-            .members
-            .iter()
-            .map(|m| msg::MemberForce {
-                id: m.id.clone(),
-                force: 0.0,
-            })
-            .collect();
+        self.member_records = MemberRecords::new(record.model.members.iter().map(|m| m.id.as_str()));
         Ok(())
     }
 
@@ -438,6 +491,30 @@ mod tests {
     use super::*;
     use crate::model::generate::TowerSpec;
     use crate::record::h5::tests::{drive, temp_path};
+
+    /// The patched records give the bytes the derive encodes, ids of any length included.
+    #[test]
+    fn member_records_encode_as_the_message_does() {
+        let ids: Vec<String> = ["a", "strut0_0", &"c".repeat(200)].iter().map(|s| s.to_string()).collect();
+        let mut records = MemberRecords::new(ids.iter().map(String::as_str));
+        for forces in [[1.5, -2.25e3, 0.0], [f64::MAX, -0.0, 1e-300]] {
+            let mut ours = Vec::new();
+            let head = msg::MemberForces {
+                stage: "deployment".into(),
+                step: 300,
+                members: Vec::new(),
+            };
+            head.encode(&mut ours).unwrap();
+            ours.extend_from_slice(records.with_forces(&forces));
+            let full = msg::MemberForces {
+                members: ids.iter().zip(forces).map(|(id, force)| msg::MemberForce { id: id.clone(), force }).collect(),
+                ..head
+            };
+            let mut derived = Vec::new();
+            full.encode(&mut derived).unwrap();
+            assert_eq!(ours, derived);
+        }
+    }
 
     #[test]
     fn logs_every_recorded_step_on_one_increasing_timeline() {

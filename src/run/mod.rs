@@ -164,12 +164,9 @@ fn execute(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Re
     let _ = std::fs::remove_file(dir.join("outcome.json"));
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     std::fs::write(dir.join("case.yaml"), &case.yaml).map_err(|e| format!("cannot write case.yaml: {e}"))?;
-    let mut recorders: Vec<Box<dyn Recorder>> = vec![Box::new(progress.case_bar(&case.id))];
-    recorders.extend(
-        crate::record::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml, background)
-            .map_err(|e| format!("cannot create outputs: {e}"))?,
-    );
-    let mut recorder = Recorders(recorders);
+    let files = crate::record::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml, background)
+        .map_err(|e| format!("cannot create outputs: {e}"))?;
+    let mut recorder = Recorders(vec![Box::new(progress.case_bar(&case.id)), files]);
     let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_case(&case.config, &mut recorder)));
     let result = match run {
         Ok(Ok(summary)) => Ok(summary),
