@@ -135,8 +135,7 @@ fn try_newmark_sdof(
     let label = |d: usize| format!("dof {d}");
     let mut out = vec![(nm.u[0] - rest_x, nm.v[0])];
     for step in 1..=steps {
-        nm.advance(dt, &no_load, &label)
-            .map_err(|e| format!("step {step}: {e:?}"))?;
+        nm.advance(dt, &no_load, &label).map_err(|e| format!("step {step}: {e:?}"))?;
         out.push((nm.u[0] - rest_x, nm.v[0]));
     }
     Ok(out)
@@ -299,7 +298,16 @@ fn newmark_reuses_the_factorization_of_a_linear_problem() {
             ..Default::default()
         };
         let rayleigh = Rayleigh { alpha: 0.8, beta: 0.002 };
-        let mut nm = Newmark::new(asm, vec![2.0], vec![0.3], vec![0.0], params, rayleigh, DampingTangent::LastConverged, newton);
+        let mut nm = Newmark::new(
+            asm,
+            vec![2.0],
+            vec![0.3],
+            vec![0.0],
+            params,
+            rayleigh,
+            DampingTangent::LastConverged,
+            newton,
+        );
         let no_load = |_: f64, f: &mut [f64]| f.fill(0.0);
         (0..100)
             .map(|step| {

@@ -170,7 +170,12 @@ impl<'a> Newmark<'a> {
 
     /// Advances by `dt`, cutting the step in halves (recursively, `max_cuts` deep) where
     /// Newton fails. `load(t, f)` writes the external force on the free DOFs at time t.
-    pub fn advance(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64]), label: &dyn Fn(usize) -> String) -> Result<NewtonReport, SolveError> {
+    pub fn advance(
+        &mut self,
+        dt: f64,
+        load: &dyn Fn(f64, &mut [f64]),
+        label: &dyn Fn(usize) -> String,
+    ) -> Result<NewtonReport, SolveError> {
         self.advance_cut(dt, 0, load, label)
     }
 

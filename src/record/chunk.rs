@@ -45,7 +45,11 @@ impl ChunkEncoder {
             // compress_vec writes into spare capacity only; grow it until the stream ends.
             self.encoded.reserve(self.shuffled.len() / 2 + 64);
             let consumed = self.deflate.total_in() as usize;
-            if self.deflate.compress_vec(&self.shuffled[consumed..], &mut self.encoded, FlushCompress::Finish)? == Status::StreamEnd {
+            if self
+                .deflate
+                .compress_vec(&self.shuffled[consumed..], &mut self.encoded, FlushCompress::Finish)?
+                == Status::StreamEnd
+            {
                 return Ok(&self.encoded);
             }
         }

@@ -49,7 +49,11 @@ pub fn file_recorders(
 ) -> Result<Box<dyn Recorder + Send>, Box<dyn std::error::Error + Send + Sync>> {
     let mut files: Vec<Box<dyn Recorder + Send>> = Vec::new();
     if outputs.hdf5 {
-        files.push(Box::new(super::h5::Hdf5Recorder::create(&dir.join("result.h5"), case_id, config_yaml)?));
+        files.push(Box::new(super::h5::Hdf5Recorder::create(
+            &dir.join("result.h5"),
+            case_id,
+            config_yaml,
+        )?));
     }
     if outputs.mcap {
         files.push(Box::new(super::replay::McapRecorder::create(&dir.join("replay.mcap"), case_id)?));

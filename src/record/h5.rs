@@ -17,11 +17,11 @@
 //! and flushed at chunk boundaries and at the end of each stage, which is what a SWMR reader
 //! sees grow.
 
+use super::chunk::ChunkEncoder;
 use super::{EigenRecord, FormFindRecord, Frame, ModelRecord, RecordResult, Recorder, Stage};
 use crate::model::AXES;
 use hdf5::types::{FixedUnicode, VarLenUnicode};
 use hdf5::{Dataset, File, Group, H5Type, Location};
-use super::chunk::ChunkEncoder;
 use hdf5_sys::h5::{herr_t, hsize_t};
 use hdf5_sys::h5i::hid_t;
 use nalgebra::Vector3;
@@ -524,7 +524,14 @@ fn append_chunk(ds: &Dataset, start: usize, rows: usize, chunk: usize, values: &
     // SAFETY: `offset` has the dataset's rank and names a chunk inside its new extent;
     // `bytes` is that chunk after the dataset's filter pipeline.
     let err = unsafe {
-        hdf5_sys::h5d::H5Dwrite_chunk(ds.id(), hdf5_sys::h5p::H5P_DEFAULT, 0, offset.as_ptr(), bytes.len(), bytes.as_ptr().cast())
+        hdf5_sys::h5d::H5Dwrite_chunk(
+            ds.id(),
+            hdf5_sys::h5p::H5P_DEFAULT,
+            0,
+            offset.as_ptr(),
+            bytes.len(),
+            bytes.as_ptr().cast(),
+        )
     };
     check(err, "H5Dwrite_chunk")
 }

@@ -507,7 +507,11 @@ mod tests {
             head.encode(&mut ours).unwrap();
             ours.extend_from_slice(records.with_forces(&forces));
             let full = msg::MemberForces {
-                members: ids.iter().zip(forces).map(|(id, force)| msg::MemberForce { id: id.clone(), force }).collect(),
+                members: ids
+                    .iter()
+                    .zip(forces)
+                    .map(|(id, force)| msg::MemberForce { id: id.clone(), force })
+                    .collect(),
                 ..head
             };
             let mut derived = Vec::new();

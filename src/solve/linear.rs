@@ -65,7 +65,6 @@ enum Factored {
     Lu,
 }
 
-
 /// Relative pivot size below which a matrix is taken as singular: about 1e3 × machine ε,
 /// far below any pivot of a stable structure (struts/cables stiffness ratio ~1e9 still
 /// leaves pivots ~1e-9 relative).

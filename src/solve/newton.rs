@@ -272,7 +272,10 @@ mod tests {
         fn residual(&mut self, u: &[f64], r: &mut [f64]) -> Scale {
             self.u = u[0];
             r[0] = self.a - u[0].powi(3);
-            Scale { force: self.a, roundoff: 0.0 }
+            Scale {
+                force: self.a,
+                roundoff: 0.0,
+            }
         }
 
         fn tangent(&mut self, k: &mut dyn TangentSink) {

@@ -111,14 +111,12 @@ impl Transient<'_> {
         record(&nm, 0, recorder)?;
         let mut mechanical = nm.energy.kinetic + nm.energy.strain;
         for step in 1..=steps {
-            let report = nm
-                .advance(self.params.dt, &load_free, &label)
-                .map_err(|source| Error::Solve {
-                    stage: stage_name,
-                    step: Some(step),
-                    time: Some(step as f64 * self.params.dt),
-                    source,
-                })?;
+            let report = nm.advance(self.params.dt, &load_free, &label).map_err(|source| Error::Solve {
+                stage: stage_name,
+                step: Some(step),
+                time: Some(step as f64 * self.params.dt),
+                source,
+            })?;
             // Re-anchor time to the step grid so that long runs do not drift.
             nm.time = step as f64 * self.params.dt;
             summary.newton_iterations += report.iterations;
