@@ -36,8 +36,9 @@ impl Recorder for Recorders {
 /// as one recorder. With `background`, both stream on one writer thread; that pays only
 /// when a core is free for it, so the runner asks for it only then (with every core
 /// running a case, a writer thread just takes turns with the solvers). One thread, not one
-/// per file: the files together cost about as much CPU as the solver, and three busy
-/// threads on two cores slowed the solver by half again (bench/outputs.md).
+/// per file: each frame is copied into one queue instead of two, and the writers do not
+/// take turns with each other and the solver on the one free core (wall time on the paper
+/// case was the same within noise either way).
 /// `outputs.every` is not theirs to apply: the stages call `frame` only for the steps to
 /// record.
 pub fn file_recorders(
