@@ -16,10 +16,11 @@ use tsim::dynamics::{DampingTangent, LoadProfile, NewmarkParams, NodalLoad, Rayl
 use tsim::law::ForceLaw;
 use tsim::model::generate::TowerSpec;
 use tsim::model::MemberKind;
-use tsim::pipeline::lumped_masses;
 use tsim::record::{NoRecorder, Stage};
 use tsim::solve::{LinearSolverChoice, NewtonSettings};
 use tsim::stage::transient::Transient;
+use tsim::stage::{Analysis, Settings};
+use tsim::structure::{State, Structure};
 use tsim::tsm::{DofMap, Elements};
 
 /// Peak resident memory of this process [MiB] (Linux VmHWM).
@@ -69,9 +70,13 @@ fn main() {
         rest.push(l0);
         linear_density.push(mat.density * 1e-3 * mat.area);
     }
-    let elements = Elements { laws, rest };
-    let mass = lumped_masses(&model, &elements.rest, &linear_density);
-    let dof = DofMap::new(&model, &[]).len();
+    let mut structure = Structure::with_lumped_masses(model, Elements { laws, rest }, &linear_density);
+    structure.damping = Rayleigh {
+        alpha: 1.612,
+        beta: 0.0052,
+    };
+    let model = &structure.model;
+    let dof = DofMap::new(model, &[]).len();
     let load = NodalLoad {
         nodes: model.node_groups["top"].clone(),
         force: Vector3::new(0.0, 0.0, 95.0),
@@ -82,15 +87,14 @@ fn main() {
         stage: Stage::Deployment,
         params: NewmarkParams {
             dt: 0.001,
-            duration: steps as f64 * 0.001,
             ..Default::default()
         },
-        rayleigh: Rayleigh {
-            alpha: 1.612,
-            beta: 0.0052,
-        },
+        duration: steps as f64 * 0.001,
+        damped: true,
         tangent: DampingTangent::LastConverged,
-        load: Some(&load),
+        load: Some(load),
+    };
+    let settings = Settings {
         newton: NewtonSettings {
             linear_solver: choice,
             ..Default::default()
@@ -98,8 +102,8 @@ fn main() {
         every: 1,
     };
     let setup_rss = peak_rss_mib();
-    let summary = transient
-        .run(&model, &elements, x0, &mass, &mut NoRecorder)
+    let (_, summary) = transient
+        .run(&structure, State::at_rest(x0), &settings, &mut NoRecorder)
         .expect("benchmark run converges");
     println!(
         "{{\"stages\": {stages}, \"nodes\": {}, \"dof\": {dof}, \"solver\": \"{choice:?}\", \"steps\": {steps}, \"wall_s\": {:.4}, \"newton_iterations\": {}, \"factorizations\": {}, \"s_per_iteration\": {:.6e}, \"steps_per_s\": {:.2}, \"peak_rss_mib\": {:.1}, \"setup_rss_mib\": {setup_rss:.1}}}",

@@ -17,9 +17,10 @@ use nalgebra::Vector3;
 use std::path::PathBuf;
 use tsim::model::generate::TowerSpec;
 use tsim::model::MemberKind;
-use tsim::record::h5::Hdf5Recorder;
-use tsim::record::replay::McapRecorder;
-use tsim::record::{Background, EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Recorder, Stage};
+use tsim::output::h5::Hdf5Recorder;
+use tsim::output::replay::McapRecorder;
+use tsim::output::Background;
+use tsim::record::{EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Outcome, Recorder, Stage};
 
 type Result<T> = std::result::Result<T, Box<dyn std::error::Error + Send + Sync>>;
 
@@ -114,5 +115,5 @@ fn main() -> Result<()> {
         }
         each(&mut |r| r.end_stage(stage))?;
     }
-    each(&mut |r| r.finish("complete"))
+    each(&mut |r| r.finish(&Outcome::Complete))
 }

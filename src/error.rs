@@ -2,23 +2,33 @@
 //! node and direction, and what to change.
 
 use crate::model::ModelError;
+use crate::record::RecordError;
 use crate::solve::SolveError;
 
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     #[error("model: {0}")]
     Model(#[from] ModelError),
-    #[error("{stage}{}: {source}", step_text(*.step, *.time))]
+    /// A Newton solve failed; `at` names the free DOF the error is about ("node `t3`
+    /// direction z"), labelled by the stage, which knows the model.
+    #[error("{stage}{}: {source}{}", step_text(*.step, *.time), at.as_ref().map(|a| format!(" at {a}")).unwrap_or_default())]
     Solve {
         stage: &'static str,
         step: Option<usize>,
         time: Option<f64>,
         source: SolveError,
+        at: Option<String>,
     },
     #[error("substitution: member `{member}`: {reason}")]
     Substitution { member: String, reason: String },
     #[error("{stage}: {reason}")]
     Stage { stage: &'static str, reason: String },
+    #[error("{stage}: recording failed: {source}")]
+    Record {
+        stage: &'static str,
+        #[source]
+        source: RecordError,
+    },
 }
 
 fn step_text(step: Option<usize>, time: Option<f64>) -> String {

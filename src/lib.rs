@@ -9,11 +9,13 @@ pub mod dynamics;
 pub mod error;
 pub mod law;
 pub mod model;
+pub mod output;
 pub mod pipeline;
 pub mod record;
 pub mod run;
 pub mod solve;
 pub mod stage;
+pub mod structure;
 pub mod tsm;
 
 pub use error::{Error, Result};

@@ -1,6 +1,9 @@
 //! Issue 2's validation: closed-form prisms, K_T against finite differences, rest-length
 //! substitution, the paper's tower, and bad-model errors.
 
+mod common;
+
+use common::form_find;
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
@@ -10,7 +13,6 @@ use tsim::model::generate::TowerSpec;
 use tsim::model::{MemberKind, Model, ModelError};
 use tsim::solve::NewtonSettings;
 use tsim::stage::eigen::{lowest_stiffness, tangent_matrix};
-use tsim::stage::formfind::form_find;
 use tsim::stage::measure::{CableCoefficients, MeasureSpec};
 use tsim::stage::substitute::{balanced_forces, rest_length, substitute};
 use tsim::tsm::{Assembly, DofMap, Elements};

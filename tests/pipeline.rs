@@ -6,20 +6,23 @@
 //!
 //! Run with `cargo test --release --test pipeline`.
 
+mod common;
+
+use common::form_find;
 use nalgebra::{Matrix2, Vector2, Vector3};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::sync::{Arc, OnceLock};
 use tsim::config::{parse_case, CaseConfig};
-use tsim::dynamics::{DampingTangent, Newmark, NewmarkParams, Rayleigh};
+use tsim::dynamics::{Damping, DampingTangent, Integrator, Newmark, NewmarkParams, Rayleigh};
 use tsim::law::{ForceLaw, LinearElastic};
 use tsim::model::{Member, MemberKind, Model, Node};
-use tsim::pipeline::{lumped_masses, run_case, CaseSummary};
+use tsim::pipeline::{run_case, CaseSummary};
 use tsim::record::{Energy, Frame, RecordResult, Recorder, Stage};
 use tsim::solve::{NewtonSettings, TangentUpdate};
-use tsim::stage::eigen::{free_masses, modes, tangent_matrix};
-use tsim::stage::formfind::form_find;
+use tsim::stage::eigen::{modes, tangent_matrix};
 use tsim::stage::substitute::{balanced_forces, substitute};
+use tsim::structure::{free_masses, lumped_masses};
 use tsim::tsm::{Assembly, DofMap, Elements};
 
 const EPS: f64 = f64::EPSILON;
@@ -114,28 +117,24 @@ fn try_newmark_sdof(
     let dofs = DofMap::new(&model, &[]);
     assert_eq!(dofs.len(), 1);
     let asm = Assembly::new(&model, &elements, &dofs, model.positions());
-    let params = NewmarkParams {
-        beta: 0.25,
-        gamma: 0.5,
-        dt,
-        duration: dt * steps as f64,
-        max_cuts: 0,
+    let integrator = Integrator {
+        params: NewmarkParams {
+            beta: 0.25,
+            gamma: 0.5,
+            dt,
+            max_cuts: 0,
+        },
+        damping: Damping {
+            rayleigh,
+            tangent: DampingTangent::LastConverged,
+        },
+        newton: NewtonSettings::default(),
     };
-    let mut nm = Newmark::new(
-        asm,
-        vec![m],
-        vec![v0],
-        vec![0.0],
-        params,
-        rayleigh,
-        DampingTangent::LastConverged,
-        NewtonSettings::default(),
-    );
+    let mut nm = Newmark::new(asm, vec![m], vec![v0], vec![0.0], &integrator);
     let no_load = |_: f64, f: &mut [f64]| f.fill(0.0);
-    let label = |d: usize| format!("dof {d}");
     let mut out = vec![(nm.u[0] - rest_x, nm.v[0])];
     for step in 1..=steps {
-        nm.advance(dt, &no_load, &label).map_err(|e| format!("step {step}: {e:?}"))?;
+        nm.advance(dt, &no_load).map_err(|e| format!("step {step}: {e:?}"))?;
         out.push((nm.u[0] - rest_x, nm.v[0]));
     }
     Ok(out)
@@ -297,22 +296,16 @@ fn newmark_reuses_the_factorization_of_a_linear_problem() {
             tangent,
             ..Default::default()
         };
-        let rayleigh = Rayleigh { alpha: 0.8, beta: 0.002 };
-        let mut nm = Newmark::new(
-            asm,
-            vec![2.0],
-            vec![0.3],
-            vec![0.0],
-            params,
-            rayleigh,
-            DampingTangent::LastConverged,
-            newton,
-        );
+        let damping = Damping {
+            rayleigh: Rayleigh { alpha: 0.8, beta: 0.002 },
+            tangent: DampingTangent::LastConverged,
+        };
+        let mut nm = Newmark::new(asm, vec![2.0], vec![0.3], vec![0.0], &Integrator { params, damping, newton });
         let no_load = |_: f64, f: &mut [f64]| f.fill(0.0);
         (0..100)
             .map(|step| {
                 let dt = if step < 50 { 0.02 } else { 0.01 };
-                let report = nm.advance(dt, &no_load, &|d| format!("dof {d}")).unwrap();
+                let report = nm.advance(dt, &no_load).unwrap();
                 (report.iterations, report.factorizations, nm.u[0])
             })
             .collect::<Vec<_>>()

@@ -5,6 +5,7 @@
 mod build;
 mod locate;
 mod materials;
+mod plan;
 mod schema;
 mod validate;
 

@@ -6,5 +6,5 @@ mod newmark;
 mod rayleigh;
 
 pub use load::{LoadProfile, NodalLoad};
-pub use newmark::{DampingTangent, Newmark, NewmarkParams};
+pub use newmark::{Damping, DampingTangent, Energy, Integrator, Newmark, NewmarkParams};
 pub use rayleigh::Rayleigh;

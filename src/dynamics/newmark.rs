@@ -1,11 +1,20 @@
 use super::Rayleigh;
-use crate::record::Energy;
-use crate::solve::{newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
-use crate::tsm::{assemble_tangents, tangent_product, Assembly, MemberState};
+use crate::solve::{bisect, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
+use crate::tsm::{assemble_tangents, tangent_pattern, tangent_product, Assembly, MemberState};
 
-/// Newmark-β integration parameters.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields, default)]
+/// The energy ledger of one converged step [J].
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Energy {
+    pub kinetic: f64,
+    pub strain: f64,
+    /// Dissipated by damping since the stage began.
+    pub damping: f64,
+    /// Work of external loads (and, in folding, of prescribed displacements) since the stage began.
+    pub external: f64,
+}
+
+/// Newmark-β integration parameters; the defaults of every transient stage's config.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NewmarkParams {
     /// β = 1/4 with γ = 1/2 is the average-acceleration rule: unconditionally stable, no
     /// numerical damping, energy-conserving on linear problems.
@@ -13,8 +22,6 @@ pub struct NewmarkParams {
     pub gamma: f64,
     /// Time step Δt [s] (paper: 0.001).
     pub dt: f64,
-    /// Duration [s] (paper: 8 s deployment, 3 s free vibration).
-    pub duration: f64,
     /// A step whose Newton solve fails is halved, up to this many times (2^cuts sub-steps),
     /// before the stage fails.
     pub max_cuts: u32,
@@ -26,10 +33,25 @@ impl Default for NewmarkParams {
             beta: 0.25,
             gamma: 0.5,
             dt: 0.001,
-            duration: 8.0,
             max_cuts: 6,
         }
     }
+}
+
+/// Rayleigh damping and the stiffness its βK term is evaluated with.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Damping {
+    pub rayleigh: Rayleigh,
+    pub tangent: DampingTangent,
+}
+
+/// Everything a Newmark integrator is set up with.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Integrator {
+    pub params: NewmarkParams,
+    pub damping: Damping,
+    /// Newton settings of every step (tolerances, linear solver, tangent reuse).
+    pub newton: NewtonSettings,
 }
 
 /// Which stiffness the βK damping term uses.
@@ -99,25 +121,17 @@ fn damping_force(asm: &Assembly, rayleigh: &Rayleigh, mass: &[f64], states: &[Me
 impl<'a> Newmark<'a> {
     /// Starts at the state of `asm` with velocities `v` under external force `f0`, with
     /// the consistent initial acceleration a0 = M⁻¹(f0 − C v0 − p(x0)).
-    pub fn new(
-        asm: Assembly<'a>,
-        mass: Vec<f64>,
-        v: Vec<f64>,
-        f0: Vec<f64>,
-        params: NewmarkParams,
-        rayleigh: Rayleigh,
-        tangent: DampingTangent,
-        newton: NewtonSettings,
-    ) -> Self {
+    pub fn new(asm: Assembly<'a>, mass: Vec<f64>, v: Vec<f64>, f0: Vec<f64>, integrator: &Integrator) -> Self {
         let n = mass.len();
         let u = asm.free_coordinates();
-        let ws = Some(asm.workspace(&newton, true));
+        let Integrator { params, damping, newton } = *integrator;
+        let ws = Some(NewtonWorkspace::new(n, &newton, true, || tangent_pattern(asm.model, asm.dofs)));
         let mut s = Newmark {
             damp_states: asm.states.clone(),
             asm,
             params,
-            rayleigh,
-            tangent,
+            rayleigh: damping.rayleigh,
+            tangent: damping.tangent,
             newton,
             mass,
             u,
@@ -170,39 +184,19 @@ impl<'a> Newmark<'a> {
 
     /// Advances by `dt`, cutting the step in halves (recursively, `max_cuts` deep) where
     /// Newton fails. `load(t, f)` writes the external force on the free DOFs at time t.
-    pub fn advance(
-        &mut self,
-        dt: f64,
-        load: &dyn Fn(f64, &mut [f64]),
-        label: &dyn Fn(usize) -> String,
-    ) -> Result<NewtonReport, SolveError> {
-        self.advance_cut(dt, 0, load, label)
-    }
-
-    fn advance_cut(
-        &mut self,
-        dt: f64,
-        depth: u32,
-        load: &dyn Fn(f64, &mut [f64]),
-        label: &dyn Fn(usize) -> String,
-    ) -> Result<NewtonReport, SolveError> {
-        match self.step(dt, load, label) {
-            Ok(r) => Ok(r),
-            Err(e) if depth >= self.params.max_cuts => Err(e),
-            Err(_) => {
-                let first = self.advance_cut(dt / 2.0, depth + 1, load, label)?;
-                let second = self.advance_cut(dt / 2.0, depth + 1, load, label)?;
-                Ok(NewtonReport {
-                    iterations: first.iterations + second.iterations,
-                    factorizations: first.factorizations + second.factorizations,
-                    residual: second.residual,
-                })
-            }
-        }
+    pub fn advance(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<NewtonReport, SolveError> {
+        let merge = |first: NewtonReport, second: NewtonReport| NewtonReport {
+            iterations: first.iterations + second.iterations,
+            factorizations: first.factorizations + second.factorizations,
+            residual: second.residual,
+        };
+        let max_cuts = self.params.max_cuts;
+        let mut step = |from: f64, to: f64| self.step(dt * (to - from), load);
+        bisect(0.0, 1.0, max_cuts, &mut step, &merge).map(|(report, _)| report)
     }
 
     /// One Newmark step of size dt; on failure the state is left as it was.
-    fn step(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64]), label: &dyn Fn(usize) -> String) -> Result<NewtonReport, SolveError> {
+    fn step(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<NewtonReport, SolveError> {
         let n = self.mass.len();
         let t_next = self.time + dt;
         load(t_next, &mut self.f_next);
@@ -222,7 +216,7 @@ impl<'a> Newmark<'a> {
             self.ws_dt = dt;
         }
         let settings = self.newton;
-        let result = newton(&mut StepProblem { nm: self, dt }, &mut trial, &settings, length, label, &mut ws);
+        let result = newton(&mut StepProblem { nm: self, dt }, &mut trial, &settings, length, &mut ws);
         self.ws = Some(ws);
         let report = match result {
             Ok(report) => report,

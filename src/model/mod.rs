@@ -104,3 +104,15 @@ pub fn height(x: &[Vector3<f64>]) -> f64 {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
     hi - lo
 }
+
+/// How far positions `x` are from a `reference` shape: the RMS over nodes of the distance
+/// to it, over its height; and the same against its mirror image z → 2 z_base − z about
+/// its lowest level (small when a tower ended upside down). Returns (direct, mirrored).
+pub fn shape_error(x: &[Vector3<f64>], reference: &[Vector3<f64>]) -> (f64, f64) {
+    let h = height(reference);
+    let rms = |target: &dyn Fn(&Vector3<f64>) -> Vector3<f64>| {
+        (x.iter().zip(reference).map(|(x, p)| (x - target(p)).norm_squared()).sum::<f64>() / reference.len() as f64).sqrt() / h
+    };
+    let base_z = reference.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+    (rms(&|p| *p), rms(&|p| Vector3::new(p.x, p.y, 2.0 * base_z - p.z)))
+}

@@ -1,15 +1,13 @@
-//! Recorders see only converged states: a stage calls them after each converged step,
-//! never with a Newton trial (OpenSees' commit-then-record). Each output format is one
-//! implementation of [`Recorder`]; [`Recorders`] fans out to several.
+//! The recording port: what stages hand to their outputs. Recorders see only converged
+//! states: a stage calls them after each converged step, never with a Newton trial
+//! (OpenSees' commit-then-record). Each output format is one implementation of
+//! [`Recorder`] (in [`crate::output`]); [`Recorders`] fans out to several. Nothing here
+//! knows files or threads.
 
-mod background;
-mod chunk;
 mod fanout;
-pub mod h5;
-pub mod replay;
 
-pub use background::Background;
-pub use fanout::{file_recorders, Recorders};
+pub use crate::dynamics::Energy;
+pub use fanout::Recorders;
 
 use crate::model::Model;
 use nalgebra::Vector3;
@@ -35,17 +33,6 @@ impl Stage {
             Stage::Deployment => "deployment",
         }
     }
-}
-
-/// The energy ledger of one converged step [J].
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
-pub struct Energy {
-    pub kinetic: f64,
-    pub strain: f64,
-    /// Dissipated by damping since the stage began.
-    pub damping: f64,
-    /// Work of external loads (and, in folding, of prescribed displacements) since the stage began.
-    pub external: f64,
 }
 
 /// One converged step of a time-stepping stage.
@@ -96,7 +83,30 @@ pub struct EigenRecord<'a> {
     pub damping_ratio: &'a [f64],
 }
 
-pub type RecordResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;
+/// Why a recorder failed (I/O, encoding, a lost writer thread), kept whole as the source
+/// of the stage error it becomes.
+pub type RecordError = Box<dyn std::error::Error + Send + Sync>;
+pub type RecordResult = Result<(), RecordError>;
+
+/// How a case ended, as the outputs' `status` records it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Outcome {
+    /// Every stage converged and every record was written.
+    Complete,
+    /// The reason: a stage error, a panic, or a recording failure.
+    Failed(String),
+}
+
+impl std::fmt::Display for Outcome {
+    /// "complete" or "failed: <reason>": the `status` strings of result.h5, replay.mcap
+    /// and outcome.json.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Outcome::Complete => f.write_str("complete"),
+            Outcome::Failed(reason) => write!(f, "failed: {reason}"),
+        }
+    }
+}
 
 /// A sink for results. Stages call, in order: `model`, `formfinding`, `eigen`, then for
 /// each time-stepping stage `begin_stage`, `frame`…, `end_stage`; `finish` last.
@@ -119,8 +129,8 @@ pub trait Recorder {
     fn end_stage(&mut self, _stage: Stage) -> RecordResult {
         Ok(())
     }
-    /// `status` is "complete" or "failed: <reason>".
-    fn finish(&mut self, _status: &str) -> RecordResult {
+    /// The case's outcome; a recorder writes it as its `status`.
+    fn finish(&mut self, _outcome: &Outcome) -> RecordResult {
         Ok(())
     }
 }

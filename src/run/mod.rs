@@ -10,7 +10,7 @@ pub use sweep::{expand, Case};
 
 use crate::config::ConfigError;
 use crate::pipeline::{run_case, CaseSummary};
-use crate::record::{Recorder, Recorders};
+use crate::record::{Outcome, Recorder, Recorders};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -24,13 +24,39 @@ pub struct RunOptions {
     pub quiet: bool,
 }
 
+/// How one case ended, in this run.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum CaseStatus {
+    /// Run to the end now.
+    Complete,
+    /// Complete from an earlier run with the same resolved config; not rerun.
+    Skipped,
+    Failed(String),
+}
+
+impl std::fmt::Display for CaseStatus {
+    /// "complete", "skipped (complete)" or "failed: <reason>", as summaries write it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CaseStatus::Complete => f.write_str("complete"),
+            CaseStatus::Skipped => f.write_str("skipped (complete)"),
+            CaseStatus::Failed(reason) => write!(f, "failed: {reason}"),
+        }
+    }
+}
+
+impl serde::Serialize for CaseStatus {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 /// How one case ended.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct CaseOutcome {
     pub id: String,
     pub params: Vec<(String, String)>,
-    /// "complete", "skipped (complete)", or "failed: <reason>".
-    pub status: String,
+    pub status: CaseStatus,
     pub wall_seconds: f64,
     pub summary: Option<CaseSummary>,
     /// With `outputs.figures`: "written" or why not.
@@ -40,7 +66,7 @@ pub struct CaseOutcome {
 
 impl CaseOutcome {
     pub fn failed(&self) -> bool {
-        self.status.starts_with("failed")
+        matches!(self.status, CaseStatus::Failed(_))
     }
 }
 
@@ -99,7 +125,7 @@ fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
     (outcome["status"] == "complete").then(|| CaseOutcome {
         id: case.id.clone(),
         params: case.params.clone(),
-        status: "skipped (complete)".into(),
+        status: CaseStatus::Skipped,
         wall_seconds: outcome["wall_seconds"].as_f64().unwrap_or_default(),
         summary: serde_json::from_value(outcome["summary"].clone()).ok(),
         figures: outcome["figures"].as_str().map(str::to_string),
@@ -109,7 +135,7 @@ fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
 fn run_one(case: &Case, dir: &Path, force: bool, background: bool, progress: &Progress) -> CaseOutcome {
     if !force {
         if let Some(done) = already_complete(case, dir) {
-            progress.done(&case.id, &done.status, 0.0);
+            progress.done(&case.id, &done.status.to_string(), 0.0);
             return done;
         }
     }
@@ -117,11 +143,11 @@ fn run_one(case: &Case, dir: &Path, force: bool, background: bool, progress: &Pr
     let result = execute(case, dir, background, progress);
     let wall_seconds = start.elapsed().as_secs_f64();
     let (status, summary) = match result {
-        Ok(s) => ("complete".to_string(), Some(s)),
-        Err(reason) => (format!("failed: {reason}"), None),
+        Ok(s) => (CaseStatus::Complete, Some(s)),
+        Err(reason) => (CaseStatus::Failed(reason), None),
     };
     let figures = (case.config.outputs.figures && summary.is_some()).then(|| draw_figures(dir));
-    progress.done(&case.id, &status, wall_seconds);
+    progress.done(&case.id, &status.to_string(), wall_seconds);
     let outcome = CaseOutcome {
         id: case.id.clone(),
         params: case.params.clone(),
@@ -164,7 +190,7 @@ fn execute(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Re
     let _ = std::fs::remove_file(dir.join("outcome.json"));
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     std::fs::write(dir.join("case.yaml"), &case.yaml).map_err(|e| format!("cannot write case.yaml: {e}"))?;
-    let files = crate::record::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml, background)
+    let files = crate::output::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml, background)
         .map_err(|e| format!("cannot create outputs: {e}"))?;
     let mut recorder = Recorders(vec![Box::new(progress.case_bar(&case.id)), files]);
     let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_case(&case.config, &mut recorder)));
@@ -180,10 +206,10 @@ fn execute(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Re
                 .unwrap_or_default()
         )),
     };
-    let status = match &result {
-        Ok(_) => "complete".to_string(),
-        Err(reason) => format!("failed: {reason}"),
+    let outcome = match &result {
+        Ok(_) => Outcome::Complete,
+        Err(reason) => Outcome::Failed(reason.clone()),
     };
-    recorder.finish(&status).map_err(|e| format!("cannot finish outputs: {e}"))?;
+    recorder.finish(&outcome).map_err(|e| format!("cannot finish outputs: {e}"))?;
     result
 }

@@ -2,7 +2,7 @@
 //! simulated time. Hidden when stderr is not a terminal, when `CI` is set, or with
 //! `--quiet`; then each finished case prints one plain line instead.
 
-use crate::record::{Frame, RecordResult, Recorder, Stage};
+use crate::record::{Frame, Outcome, RecordResult, Recorder, Stage};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 
@@ -75,7 +75,7 @@ impl Recorder for CaseBar {
         }
         Ok(())
     }
-    fn finish(&mut self, _status: &str) -> RecordResult {
+    fn finish(&mut self, _outcome: &Outcome) -> RecordResult {
         self.bar.finish_and_clear();
         Ok(())
     }

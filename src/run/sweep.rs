@@ -166,7 +166,7 @@ fn figures(o: &CaseOutcome) -> Vec<String> {
     let eig = s.and_then(|s| s.eigen.as_ref());
     let dep = s.and_then(|s| s.deployment.as_ref());
     vec![
-        o.status.replace(['"', '\n'], "'"),
+        o.status.to_string().replace(['"', '\n'], "'"),
         format!("{:.3}", o.wall_seconds),
         f(s.map(|s| s.substitution.residual)),
         f(eig.and_then(|e| e.omega2.first().copied())),

@@ -92,14 +92,15 @@ pub struct NewtonWorkspace {
 
 impl NewtonWorkspace {
     /// `pattern` lists the (row, column) entries the tangent can have (used by the sparse
-    /// solver); `reuse`: whether factorizations are reused ([`TangentUpdate::reuses`]).
+    /// solver); `transient`: a time-stepping stage ([`TangentUpdate::reuses`]).
     pub fn new<P: IntoIterator<Item = (usize, usize)>>(
         n: usize,
-        choice: LinearSolverChoice,
-        reuse: bool,
+        settings: &NewtonSettings,
+        transient: bool,
         pattern: impl FnOnce() -> P,
     ) -> Self {
-        let solver: Box<dyn TangentSolver> = match choice {
+        let reuse = settings.tangent.reuses(transient);
+        let solver: Box<dyn TangentSolver> = match settings.linear_solver {
             LinearSolverChoice::Dense => Box::new(DenseSolver::new(n)),
             LinearSolverChoice::Auto if n <= DENSE_LIMIT => Box::new(DenseSolver::new(n)),
             _ => Box::new(SparseSolver::new(n, pattern())),
@@ -171,8 +172,18 @@ pub enum SolveError {
     },
     #[error("residual became non-finite at iteration {iteration} (diverged)")]
     NonFinite { iteration: usize },
-    #[error("singular tangent stiffness at {dof} (pivot ratio {ratio:.1e}): a mechanism or instability there")]
-    Singular { dof: String, ratio: f64 },
+    #[error("singular tangent stiffness (pivot ratio {ratio:.1e}): a mechanism or instability")]
+    Singular { dof: Option<usize>, ratio: f64 },
+}
+
+impl SolveError {
+    /// The free DOF the error is about, where known.
+    pub fn dof(&self) -> Option<usize> {
+        match self {
+            SolveError::Singular { dof, .. } => *dof,
+            _ => None,
+        }
+    }
 }
 
 /// The Newton-Raphson driver: solves r(u) = 0 from the given `u` (updated in place).
@@ -180,16 +191,14 @@ pub enum SolveError {
 /// tol_u·`length` (a start already in balance needs no increment). With reuse on, the
 /// factorization held in `ws` (possibly from an earlier solve) is used while the residual
 /// keeps falling [`REUSE_CONTRACTION`]-fold per iteration.
-/// `label` names a free DOF for error messages.
 pub fn newton(
     problem: &mut impl Residual,
     u: &mut [f64],
     settings: &NewtonSettings,
     length: f64,
-    label: &dyn Fn(usize) -> String,
     ws: &mut NewtonWorkspace,
 ) -> Result<NewtonReport, SolveError> {
-    let result = iterate(problem, u, settings, length, label, ws);
+    let result = iterate(problem, u, settings, length, ws);
     if result.is_err() {
         // A failed solve may leave a factorization that led it astray: retry fresh.
         ws.factored = false;
@@ -202,7 +211,6 @@ fn iterate(
     u: &mut [f64],
     settings: &NewtonSettings,
     length: f64,
-    label: &dyn Fn(usize) -> String,
     ws: &mut NewtonWorkspace,
 ) -> Result<NewtonReport, SolveError> {
     let mut increment = 0.0;
@@ -234,10 +242,7 @@ fn iterate(
                 increment,
             });
         }
-        let singular = |LinearError::Singular { dof, ratio }| SolveError::Singular {
-            dof: dof.map_or_else(|| "a DOF the sparse LU does not name".to_string(), label),
-            ratio,
-        };
+        let singular = |LinearError::Singular { dof, ratio }| SolveError::Singular { dof, ratio };
         if !(ws.reuse && ws.factored && res <= REUSE_CONTRACTION * previous) {
             ws.factored = false;
             ws.solver.clear();
@@ -290,12 +295,17 @@ mod tests {
             ..Default::default()
         };
         let mut u = [u0];
-        let report = newton(&mut Cubic { a, u: u0 }, &mut u, &settings, 10.0, &|d| format!("u{d}"), ws).unwrap();
+        let report = newton(&mut Cubic { a, u: u0 }, &mut u, &settings, 10.0, ws).unwrap();
         (u[0], report)
     }
 
     fn workspace(tangent: TangentUpdate) -> NewtonWorkspace {
-        NewtonWorkspace::new(1, LinearSolverChoice::Dense, tangent.reuses(true), Vec::new)
+        let settings = NewtonSettings {
+            linear_solver: LinearSolverChoice::Dense,
+            tangent,
+            ..Default::default()
+        };
+        NewtonWorkspace::new(1, &settings, true, Vec::new)
     }
 
     /// Tolerance 1e-10 × a on the residual, i.e. ~1e-10/3 relative on the root; 1e-10

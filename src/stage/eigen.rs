@@ -3,11 +3,94 @@
 //! lumped. With diagonal M the symmetric-definite problem reduces to the standard one:
 //! C = M^-½ K M^-½ = Y Λ Yᵀ, Φ = M^-½ Y, which is M-orthonormal.
 
+use super::{record_error, Analysis, Settings};
+use crate::dynamics::Rayleigh;
 use crate::error::{Error, Result};
 use crate::model::Model;
+use crate::record::{EigenRecord, Recorder};
+use crate::structure::{State, Structure};
 use crate::tsm::{Assembly, DofMap};
 use faer::{Mat, Side};
 use nalgebra::Vector3;
+
+/// Where Rayleigh damping comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DampingFrom {
+    /// α, β given.
+    Given(Rayleigh),
+    /// Damping ratios at two modes (1-based), eqs 13–14.
+    Modes { modes: [usize; 2], ratios: [f64; 2] },
+    /// Damping ratios at the two modes of largest effective modal mass along an axis
+    /// (0, 1, 2 for x, y, z).
+    AutoModes { axis: usize, ratios: [f64; 2] },
+}
+
+/// Eigen analysis at the state it is given, and the Rayleigh damping it implies.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Eigen {
+    pub damping: DampingFrom,
+}
+
+/// Key figures of the eigen analysis.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct EigenSummary {
+    pub omega2: Vec<f64>,
+    pub frequency_hz: Vec<f64>,
+    /// 1-based modes the damping came from (empty when α, β were given).
+    pub damping_modes: Vec<usize>,
+    pub damping_ratio: Vec<f64>,
+    pub rayleigh_alpha: f64,
+    pub rayleigh_beta: f64,
+}
+
+impl EigenSummary {
+    /// The Rayleigh damping the analysis chose.
+    pub fn rayleigh(&self) -> Rayleigh {
+        Rayleigh {
+            alpha: self.rayleigh_alpha,
+            beta: self.rayleigh_beta,
+        }
+    }
+}
+
+impl Analysis for Eigen {
+    type Summary = EigenSummary;
+
+    fn run(&self, structure: &Structure, state: State, _settings: &Settings, recorder: &mut dyn Recorder) -> Result<(State, EigenSummary)> {
+        let model = &structure.model;
+        let dofs = DofMap::new(model, &[]);
+        let asm = Assembly::new(model, &structure.elements, &dofs, state.positions.clone());
+        let mass = structure.free_masses(&dofs);
+        let m = modes(&tangent_matrix(&asm), &mass, &dofs, model)?;
+        let (rayleigh, chosen, ratios) = match self.damping {
+            DampingFrom::Given(r) => (r, vec![], vec![]),
+            DampingFrom::Modes { modes, ratios } => (m.rayleigh(modes, ratios), modes.to_vec(), ratios.to_vec()),
+            DampingFrom::AutoModes { axis, ratios } => {
+                let modes = m.auto_modes(&mass, &dofs, axis);
+                (m.rayleigh(modes, ratios), modes.to_vec(), ratios.to_vec())
+            }
+        };
+        recorder
+            .eigen(&EigenRecord {
+                omega2: &m.omega2,
+                mode_shapes: &m.node_shapes(model, &dofs),
+                rayleigh_alpha: rayleigh.alpha,
+                rayleigh_beta: rayleigh.beta,
+                damping_modes: &chosen,
+                damping_ratio: &ratios,
+            })
+            .map_err(record_error("eigen"))?;
+        let summary = EigenSummary {
+            frequency_hz: m.frequency_hz(),
+            omega2: m.omega2,
+            damping_modes: chosen,
+            damping_ratio: ratios,
+            rayleigh_alpha: rayleigh.alpha,
+            rayleigh_beta: rayleigh.beta,
+        };
+        Ok((state, summary))
+    }
+}
 
 #[derive(Clone, Debug)]
 pub struct Modes {
@@ -21,6 +104,31 @@ impl Modes {
     /// Frequency f = ω/2π [Hz] (NaN for a negative ω², an unstable mode).
     pub fn frequency_hz(&self) -> Vec<f64> {
         self.omega2.iter().map(|w2| w2.sqrt() / (2.0 * std::f64::consts::PI)).collect()
+    }
+
+    /// Rayleigh damping with damping `ratios` at the 1-based `modes` (eqs 13–14).
+    fn rayleigh(&self, modes: [usize; 2], ratios: [f64; 2]) -> Rayleigh {
+        let w = |k: usize| self.omega2[k - 1].sqrt();
+        Rayleigh::from_modes(w(modes[0]), w(modes[1]), ratios[0], ratios[1])
+    }
+
+    /// The two modes with the largest effective modal mass along `axis`:
+    /// m_eff = (φᵀ M r)² for mass-normalised φ and r the unit rigid translation.
+    /// Returned 1-based, in ascending mode order.
+    fn auto_modes(&self, mass: &[f64], dofs: &DofMap, axis: usize) -> [usize; 2] {
+        let n = mass.len();
+        let mut eff: Vec<(usize, f64)> = (0..n)
+            .map(|k| {
+                let g: f64 = (0..n)
+                    .filter(|&i| dofs.owner(i).1 == axis)
+                    .map(|i| self.shapes[(i, k)] * mass[i])
+                    .sum();
+                (k + 1, g * g)
+            })
+            .collect();
+        eff.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let (a, b) = (eff[0].0, eff[1].0);
+        [a.min(b), a.max(b)]
     }
 
     /// Mode shapes expanded to every node ([mode][node]), zero at supported directions.
@@ -44,11 +152,6 @@ pub fn tangent_matrix(asm: &Assembly) -> Mat<f64> {
     let mut k = Mat::zeros(n, n);
     asm.add_tangent(1.0, &mut k);
     k
-}
-
-/// Lumped mass on each free DOF from nodal masses.
-pub fn free_masses(dofs: &DofMap, node_mass: &[f64]) -> Vec<f64> {
-    (0..dofs.len()).map(|i| node_mass[dofs.owner(i).0]).collect()
 }
 
 /// All modes of K φ = ω² M φ; every free DOF must carry mass.

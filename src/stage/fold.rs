@@ -3,28 +3,43 @@
 //! equilibrium by the common Newton driver at every step. A step that fails is split in
 //! halves (bounded); line search did not help in a prototype, sub-stepping did.
 
-use super::StaticEquilibrium;
-use crate::error::{Error, Result};
+use super::frames::FrameBuilder;
+use super::{record_error, solve_error, Analysis, Settings, StaticEquilibrium};
+use crate::dynamics::Energy;
+use crate::error::Result;
 use crate::model::{height, Model};
-use crate::record::{Energy, Frame, Recorder, Stage};
-use crate::solve::{newton, NewtonSettings, NewtonWorkspace, SolveError};
-use crate::tsm::{Assembly, DofMap, Elements};
+use crate::record::{Recorder, Stage};
+use crate::solve::{bisect, newton, NewtonSettings, NewtonWorkspace, SolveError};
+use crate::structure::{State, Structure};
+use crate::tsm::{tangent_pattern, Assembly, DofMap};
 use nalgebra::Vector3;
 
-/// Prescribed node directions and their targets.
+/// Where one group's prescribed direction goes.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Prescribed {
-    /// (node, axis, start value, target value) [m].
-    pub dofs: Vec<(usize, usize, f64, f64)>,
+pub enum Target {
+    /// Onto the mean coordinate of these nodes (e.g. the base ring) along the axis.
+    LevelOf(Vec<usize>),
+    /// By this displacement [m].
+    Displacement(f64),
 }
 
-/// Settings of the folding stage.
+/// One prescribed direction of a set of nodes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Prescription {
+    pub nodes: Vec<usize>,
+    /// 0, 1, 2 for x, y, z.
+    pub axis: usize,
+    pub target: Target,
+}
+
+/// The folding stage.
 #[derive(Clone, Debug)]
 pub struct Folding {
     pub steps: usize,
     /// A failed step is halved up to this many times.
     pub max_cuts: u32,
-    pub newton: NewtonSettings,
+    /// Applied in order; a later prescription of the same node direction wins.
+    pub prescribe: Vec<Prescription>,
 }
 
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
@@ -35,12 +50,35 @@ pub struct FoldSummary {
     pub cut_steps: usize,
     /// Final height over initial height (max z − min z).
     pub height_ratio: f64,
-    #[serde(skip)]
-    pub final_positions: Vec<Vector3<f64>>,
 }
 
-struct FoldState<'a> {
+/// (node, axis, start value, target value) of every prescribed direction [m].
+type Prescribed = Vec<(usize, usize, f64, f64)>;
+
+impl Folding {
+    /// Start and target of every prescribed direction from positions `x`.
+    fn resolve(&self, x: &[Vector3<f64>]) -> Prescribed {
+        let mut dofs: Prescribed = Vec::new();
+        for p in &self.prescribe {
+            let a = p.axis;
+            for &n in &p.nodes {
+                let target = match &p.target {
+                    Target::Displacement(d) => x[n][a] + d,
+                    Target::LevelOf(level) => level.iter().map(|&m| x[m][a]).sum::<f64>() / level.len() as f64,
+                };
+                dofs.retain(|&(m, b, _, _)| !(m == n && b == a));
+                dofs.push((n, a, x[n][a], target));
+            }
+        }
+        dofs
+    }
+}
+
+/// The state folding carries from step to step.
+struct Fold<'a> {
     problem: StaticEquilibrium<'a>,
+    prescribed: &'a Prescribed,
+    newton: NewtonSettings,
     u: Vec<f64>,
     fraction: f64,
     /// Work done by the prescribed displacements (trapezoidal in the reactions).
@@ -48,130 +86,100 @@ struct FoldState<'a> {
     ws: NewtonWorkspace,
 }
 
-impl Folding {
-    pub fn run(
-        &self,
-        model: &Model,
-        elements: &Elements,
-        x0: Vec<Vector3<f64>>,
-        prescribed: &Prescribed,
-        recorder: &mut dyn Recorder,
-    ) -> Result<FoldSummary> {
-        let mut mask = vec![[false; 3]; model.node_count()];
-        for &(n, a, _, _) in &prescribed.dofs {
-            mask[n][a] = true;
+impl Fold<'_> {
+    /// Moves the prescribed directions from fraction `from` (the current one) to `to`
+    /// and solves; on failure restores the state. Returns the Newton iterations.
+    fn step(&mut self, from: f64, to: f64) -> Result<usize, SolveError> {
+        let (u_old, x_old) = (self.u.clone(), self.problem.asm.x.clone());
+        let reaction = |asm: &Assembly, n: usize, a: usize| asm.p[3 * n + a];
+        let before: Vec<f64> = self
+            .prescribed
+            .iter()
+            .map(|&(n, a, _, _)| reaction(&self.problem.asm, n, a))
+            .collect();
+        for &(n, a, start, end) in self.prescribed {
+            self.problem.asm.x[n][a] = start + to * (end - start);
         }
-        let dofs = DofMap::new(model, &mask);
-        let h0 = height(&x0);
-        let asm = Assembly::new(model, elements, &dofs, x0);
-        let u = asm.free_coordinates();
-        let ws = asm.workspace(&self.newton, false);
-        let mut st = FoldState {
+        let length = self.problem.asm.model.size();
+        match newton(&mut self.problem, &mut self.u, &self.newton, length, &mut self.ws) {
+            Ok(report) => {
+                self.problem.asm.set_free(&self.u);
+                for (k, &(n, a, start, end)) in self.prescribed.iter().enumerate() {
+                    let dx = (to - from) * (end - start);
+                    self.work += 0.5 * (before[k] + reaction(&self.problem.asm, n, a)) * dx;
+                }
+                self.fraction = to;
+                Ok(report.iterations)
+            }
+            Err(e) => {
+                self.u = u_old;
+                self.problem.asm.x = x_old;
+                self.problem.asm.update();
+                Err(e)
+            }
+        }
+    }
+}
+
+/// The free DOFs left when `prescribed` directions are imposed.
+fn free_dofs(model: &Model, prescribed: &Prescribed) -> DofMap {
+    let mut mask = vec![[false; 3]; model.node_count()];
+    for &(n, a, _, _) in prescribed {
+        mask[n][a] = true;
+    }
+    DofMap::new(model, &mask)
+}
+
+impl Analysis for Folding {
+    type Summary = FoldSummary;
+
+    fn run(&self, structure: &Structure, state: State, settings: &Settings, recorder: &mut dyn Recorder) -> Result<(State, FoldSummary)> {
+        let model = &structure.model;
+        let prescribed = self.resolve(&state.positions);
+        let dofs = free_dofs(model, &prescribed);
+        let h0 = height(&state.positions);
+        let asm = Assembly::new(model, &structure.elements, &dofs, state.positions);
+        let mut fold = Fold {
+            u: asm.free_coordinates(),
+            ws: NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_pattern(model, &dofs)),
             problem: StaticEquilibrium {
                 asm,
                 load: vec![0.0; dofs.len()],
             },
-            u,
+            prescribed: &prescribed,
+            newton: settings.newton,
             fraction: 0.0,
             work: 0.0,
-            ws,
         };
-        let strain0 = elements.strain_energy(model, &st.problem.asm.x);
-        let rec = |e: Box<dyn std::error::Error + Send + Sync>| Error::Stage {
-            stage: "folding",
-            reason: format!("recording failed: {e}"),
-        };
-        let record = |st: &FoldState, step: usize, recorder: &mut dyn Recorder| -> Result<()> {
-            let asm = &st.problem.asm;
-            let forces: Vec<f64> = asm.states.iter().map(|s| s.force).collect();
-            let lengths: Vec<f64> = asm.states.iter().map(|s| s.length).collect();
+        let strain0 = structure.strain_energy(&fold.problem.asm.x);
+        let mut frames = FrameBuilder::new(model.node_count());
+        let mut record = |fold: &Fold, step: usize, recorder: &mut dyn Recorder| {
             let energy = Energy {
                 kinetic: 0.0,
-                strain: elements.strain_energy(model, &asm.x) - strain0,
+                strain: structure.strain_energy(&fold.problem.asm.x) - strain0,
                 damping: 0.0,
-                external: st.work,
+                external: fold.work,
             };
-            recorder
-                .frame(&Frame {
-                    step,
-                    time: st.fraction,
-                    positions: &asm.x,
-                    velocities: None,
-                    forces: &forces,
-                    lengths: &lengths,
-                    energy,
-                })
-                .map_err(rec)
+            frames
+                .record(recorder, &fold.problem.asm, step, fold.fraction, None, energy)
+                .map_err(record_error("folding"))
         };
-        recorder.begin_stage(Stage::Folding).map_err(rec)?;
-        record(&st, 0, recorder)?;
+        recorder.begin_stage(Stage::Folding).map_err(record_error("folding"))?;
+        record(&fold, 0, recorder)?;
         let mut summary = FoldSummary {
             steps: self.steps,
             ..Default::default()
         };
-        let label = |d: usize| dofs.label(model, d);
         for step in 1..=self.steps {
             let target = step as f64 / self.steps as f64;
-            let (iterations, cut) = self.reach(&mut st, target, 0, prescribed, &label).map_err(|source| Error::Solve {
-                stage: "folding",
-                step: Some(step),
-                time: None,
-                source,
-            })?;
+            let (iterations, cut) = bisect(fold.fraction, target, self.max_cuts, &mut |a, b| fold.step(a, b), &|i, j| i + j)
+                .map_err(solve_error("folding", Some(step), None, structure, &dofs))?;
             summary.newton_iterations += iterations;
             summary.cut_steps += usize::from(cut);
-            record(&st, step, recorder)?;
+            record(&fold, step, recorder)?;
         }
-        recorder.end_stage(Stage::Folding).map_err(rec)?;
-        summary.height_ratio = height(&st.problem.asm.x) / h0;
-        summary.final_positions = st.problem.asm.x;
-        Ok(summary)
-    }
-
-    /// Moves the prescribed directions to `target` fraction and solves; on failure
-    /// restores the state and tries two half-increments. Returns (iterations, was cut).
-    fn reach(
-        &self,
-        st: &mut FoldState,
-        target: f64,
-        depth: u32,
-        prescribed: &Prescribed,
-        label: &dyn Fn(usize) -> String,
-    ) -> Result<(usize, bool), SolveError> {
-        let (u_old, f_old) = (st.u.clone(), st.fraction);
-        let x_old = st.problem.asm.x.clone();
-        let reaction = |asm: &Assembly, n: usize, a: usize| asm.p[3 * n + a];
-        let before: Vec<f64> = prescribed
-            .dofs
-            .iter()
-            .map(|&(n, a, _, _)| reaction(&st.problem.asm, n, a))
-            .collect();
-        for &(n, a, from, to) in &prescribed.dofs {
-            st.problem.asm.x[n][a] = from + target * (to - from);
-        }
-        let length = st.problem.asm.model.size();
-        match newton(&mut st.problem, &mut st.u, &self.newton, length, label, &mut st.ws) {
-            Ok(report) => {
-                st.problem.asm.set_free(&st.u);
-                for (k, &(n, a, from, to)) in prescribed.dofs.iter().enumerate() {
-                    let dx = (target - f_old) * (to - from);
-                    st.work += 0.5 * (before[k] + reaction(&st.problem.asm, n, a)) * dx;
-                }
-                st.fraction = target;
-                Ok((report.iterations, false))
-            }
-            Err(e) => {
-                st.u = u_old;
-                st.problem.asm.x = x_old;
-                st.problem.asm.update();
-                if depth >= self.max_cuts {
-                    return Err(e);
-                }
-                let mid = 0.5 * (f_old + target);
-                let (i1, _) = self.reach(st, mid, depth + 1, prescribed, label)?;
-                let (i2, _) = self.reach(st, target, depth + 1, prescribed, label)?;
-                Ok((i1 + i2, true))
-            }
-        }
+        recorder.end_stage(Stage::Folding).map_err(record_error("folding"))?;
+        summary.height_ratio = height(&fold.problem.asm.x) / h0;
+        Ok((State::at_rest(fold.problem.asm.x), summary))
     }
 }

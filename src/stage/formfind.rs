@@ -1,17 +1,33 @@
 //! Form-finding (paper §3.1, Figure 2): from the user's unbalanced shape to a
 //! self-equilibrium, with whatever force laws the members carry — measure potentials in
-//! the paper, but the common scheme takes any law.
+//! the paper, but the common scheme takes any law (a model given with real rest lengths
+//! is brought to its equilibrium the same way).
 
-use super::StaticEquilibrium;
-use crate::error::{Error, Result};
-use crate::model::Model;
-use crate::solve::{newton, NewtonSettings};
-use crate::tsm::{Assembly, DofMap, Elements};
-use nalgebra::Vector3;
+use super::{solve_error, Analysis, Settings, StaticEquilibrium};
+use crate::error::Result;
+use crate::model::height;
+use crate::record::Recorder;
+use crate::solve::{newton, NewtonWorkspace};
+use crate::structure::{State, Structure};
+use crate::tsm::{tangent_pattern, Assembly, DofMap};
 
+/// Static equilibrium without load from a state's positions; `name` names the stage in
+/// errors.
+#[derive(Clone, Copy, Debug)]
+pub struct SelfEquilibrium {
+    pub name: &'static str,
+}
+
+impl SelfEquilibrium {
+    /// Form-finding with virtual measure-potential elements.
+    pub const FORM_FINDING: SelfEquilibrium = SelfEquilibrium { name: "form-finding" };
+    /// The equilibrium of a model given with real rest lengths.
+    pub const GIVEN: SelfEquilibrium = SelfEquilibrium { name: "equilibrium" };
+}
+
+/// What an equilibrium solve found, besides the state.
 #[derive(Clone, Debug)]
 pub struct Equilibrium {
-    pub positions: Vec<Vector3<f64>>,
     pub forces: Vec<f64>,
     pub lengths: Vec<f64>,
     /// max|r| at each Newton iteration, the first at the start [N].
@@ -20,33 +36,59 @@ pub struct Equilibrium {
     pub max_reaction: f64,
 }
 
-/// Solves nodal equilibrium without load from the model's initial coordinates.
-pub fn form_find(model: &Model, elements: &Elements, settings: &NewtonSettings) -> Result<Equilibrium> {
-    let dofs = DofMap::new(model, &[]);
-    let asm = Assembly::new(model, elements, &dofs, model.positions());
-    let mut u = asm.free_coordinates();
-    let mut ws = asm.workspace(settings, false);
-    let mut problem = StaticEquilibrium {
-        asm,
-        load: vec![0.0; dofs.len()],
-    };
-    newton(&mut problem, &mut u, settings, model.size(), &|d| dofs.label(model, d), &mut ws).map_err(|source| Error::Solve {
-        stage: "form-finding",
-        step: None,
-        time: None,
-        source,
-    })?;
-    problem.asm.set_free(&u);
-    let asm = problem.asm;
-    let max_reaction = (0..model.node_count() * 3)
-        .filter(|&i| dofs.free(i / 3, i % 3).is_none())
-        .map(|i| asm.p[i].abs())
-        .fold(0.0, f64::max);
-    Ok(Equilibrium {
-        forces: asm.states.iter().map(|s| s.force).collect(),
-        lengths: asm.states.iter().map(|s| s.length).collect(),
-        positions: asm.x,
-        residuals: ws.history,
-        max_reaction,
-    })
+impl Analysis for SelfEquilibrium {
+    type Summary = Equilibrium;
+
+    fn run(&self, structure: &Structure, state: State, settings: &Settings, _recorder: &mut dyn Recorder) -> Result<(State, Equilibrium)> {
+        let model = &structure.model;
+        let dofs = DofMap::new(model, &[]);
+        let asm = Assembly::new(model, &structure.elements, &dofs, state.positions);
+        let mut u = asm.free_coordinates();
+        let mut ws = NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_pattern(model, &dofs));
+        let mut problem = StaticEquilibrium {
+            asm,
+            load: vec![0.0; dofs.len()],
+        };
+        newton(&mut problem, &mut u, &settings.newton, model.size(), &mut ws)
+            .map_err(solve_error(self.name, None, None, structure, &dofs))?;
+        problem.asm.set_free(&u);
+        let asm = problem.asm;
+        let max_reaction = (0..model.node_count() * 3)
+            .filter(|&i| dofs.free(i / 3, i % 3).is_none())
+            .map(|i| asm.p[i].abs())
+            .fold(0.0, f64::max);
+        let found = Equilibrium {
+            forces: asm.states.iter().map(|s| s.force).collect(),
+            lengths: asm.states.iter().map(|s| s.length).collect(),
+            residuals: ws.history,
+            max_reaction,
+        };
+        Ok((State::at_rest(asm.x), found))
+    }
+}
+
+/// Key figures of form-finding.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct FormFindSummary {
+    pub iterations: usize,
+    pub residuals: Vec<f64>,
+    /// Largest support reaction [N] (zero for a self-equilibrium).
+    pub max_reaction: f64,
+    pub height: f64,
+    pub min_force: f64,
+    pub max_force: f64,
+}
+
+impl FormFindSummary {
+    /// From the equilibrium found at `state` and its balanced member `forces`.
+    pub fn new(found: &Equilibrium, state: &State, forces: &[f64]) -> Self {
+        FormFindSummary {
+            iterations: found.residuals.len() - 1,
+            residuals: found.residuals.clone(),
+            max_reaction: found.max_reaction,
+            height: height(&state.positions),
+            min_force: forces.iter().copied().fold(f64::INFINITY, f64::min),
+            max_force: forces.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        }
+    }
 }

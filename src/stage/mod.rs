@@ -1,13 +1,69 @@
 //! The pipeline's stages, each a small driver on top of [`crate::tsm`] (forces and
-//! tangents) and [`crate::solve`] (the Newton driver). A stage takes a converged state and
-//! hands the next one a converged state.
+//! tangents), [`crate::dynamics`] (time stepping) and [`crate::solve`] (the Newton
+//! driver). Every stage has the shape of [`Analysis::run`]: it takes the [`Structure`] and
+//! a converged [`State`], pushes its converged steps to the recorder and returns the
+//! converged state it ends in with its summary.
 
 pub mod eigen;
 pub mod fold;
 pub mod formfind;
+mod frames;
 pub mod measure;
 mod statics;
 pub mod substitute;
 pub mod transient;
 
 pub use statics::StaticEquilibrium;
+
+use crate::error::{Error, Result};
+use crate::record::{RecordError, Recorder};
+use crate::solve::{NewtonSettings, SolveError};
+use crate::structure::{State, Structure};
+use crate::tsm::DofMap;
+
+/// Settings every stage of a case shares.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    pub newton: NewtonSettings,
+    /// Record every `every`-th step of a time-stepping stage (and its last).
+    pub every: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            newton: NewtonSettings::default(),
+            every: 1,
+        }
+    }
+}
+
+/// One stage of the paper's Figure 1.
+pub trait Analysis {
+    type Summary;
+    /// Runs from the converged `state` of `structure`; returns the converged state the
+    /// stage ends in and its key figures.
+    fn run(&self, structure: &Structure, state: State, settings: &Settings, recorder: &mut dyn Recorder) -> Result<(State, Self::Summary)>;
+}
+
+/// A Newton failure as a stage error, the DOF it is about named by node and direction.
+fn solve_error<'a>(
+    stage: &'static str,
+    step: Option<usize>,
+    time: Option<f64>,
+    structure: &'a Structure,
+    dofs: &'a DofMap,
+) -> impl FnOnce(SolveError) -> Error + 'a {
+    move |source| Error::Solve {
+        stage,
+        step,
+        time,
+        at: source.dof().map(|d| dofs.label(&structure.model, d)),
+        source,
+    }
+}
+
+/// A recorder failure as a stage error, keeping its source.
+fn record_error(stage: &'static str) -> impl Fn(RecordError) -> Error {
+    move |source| Error::Record { stage, source }
+}

@@ -2,14 +2,81 @@
 //! which its real law carries the form-found force at the form-found length, so the real
 //! structure is in equilibrium in the same shape.
 
+use super::eigen::{lowest_stiffness, tangent_matrix};
 use crate::error::{Error, Result};
 use crate::law::ForceLaw;
 use crate::model::{MemberKind, Model};
+use crate::structure::{State, Structure};
 use crate::tsm::{Assembly, DofMap, Elements};
 use faer::linalg::solvers::Solve;
 use faer::Mat;
 use nalgebra::Vector3;
 use std::sync::Arc;
+
+/// The real materials of every member.
+#[derive(Clone, Debug)]
+pub struct Materials {
+    pub laws: Vec<Arc<dyn ForceLaw>>,
+    /// Mass per unit rest length [kg/m] (density × area, in the chosen mass reading).
+    pub linear_density: Vec<f64>,
+}
+
+impl Materials {
+    /// The real structure with `rest` lengths, masses lumped from the members.
+    pub fn structure(&self, model: &Model, rest: Vec<f64>) -> Structure {
+        let elements = Elements {
+            laws: self.laws.clone(),
+            rest,
+        };
+        Structure::with_lumped_masses(model.clone(), elements, &self.linear_density)
+    }
+
+    /// Substitution: the real structure that carries `scale` × the form-found `forces`
+    /// (balanced, see [`balanced_forces`]) in the form-found shape `found`.
+    pub fn substitute(&self, model: &Model, found: &State, forces: &[f64], scale: f64) -> Result<Structure> {
+        let sub = substitute(model, &found.positions, forces, self.laws.clone(), scale)?;
+        Ok(self.structure(model, sub.elements.rest))
+    }
+}
+
+/// How the real structure stands in its equilibrium shape.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct SubstitutionSummary {
+    /// Out-of-balance of the real-material structure at the form-found shape [N].
+    pub residual: f64,
+    pub max_force: f64,
+    /// Cable stretch λ = l/l0 range after substitution.
+    pub cable_stretch: [f64; 2],
+    /// Lowest eigenvalue of K_T (free DOFs) [N/m] and where it acts: > 0 is stable.
+    pub lowest_stiffness: f64,
+    pub lowest_stiffness_at: String,
+    pub total_mass: f64,
+}
+
+impl SubstitutionSummary {
+    /// Balance, forces, cable stretch, stability and mass of `structure` at `state`.
+    pub fn new(structure: &Structure, state: &State) -> Result<Self> {
+        let model = &structure.model;
+        let dofs = DofMap::new(model, &[]);
+        let asm = Assembly::new(model, &structure.elements, &dofs, state.positions.clone());
+        let stretch = model
+            .members
+            .iter()
+            .zip(&asm.states)
+            .zip(&structure.elements.rest)
+            .filter(|((m, _), _)| m.kind == MemberKind::Cable)
+            .map(|((_, s), l0)| s.length / l0);
+        let (lowest, at) = lowest_stiffness(&tangent_matrix(&asm), &dofs, model)?;
+        Ok(SubstitutionSummary {
+            residual: asm.max_free_residual(),
+            max_force: asm.states.iter().map(|s| s.force.abs()).fold(0.0, f64::max),
+            cable_stretch: stretch.fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], l| [lo.min(l), hi.max(l)]),
+            lowest_stiffness: lowest,
+            lowest_stiffness_at: at,
+            total_mass: structure.masses.iter().sum(),
+        })
+    }
+}
 
 /// Member forces of a form-found shape, made to balance exactly.
 ///

@@ -1,25 +1,27 @@
 //! A time-stepping stage (free vibration, deployment): Newmark from a given state under a
 //! nodal load, every converged step recorded, with the figures the checks need.
 
-use crate::dynamics::{DampingTangent, Newmark, NewmarkParams, NodalLoad, Rayleigh};
-use crate::error::{Error, Result};
-use crate::model::{MemberKind, Model};
-use crate::record::{Frame, Recorder, Stage};
-use crate::solve::NewtonSettings;
-use crate::tsm::{Assembly, DofMap, Elements};
+use super::frames::FrameBuilder;
+use super::{record_error, solve_error, Analysis, Settings};
+use crate::dynamics::{Damping, DampingTangent, Integrator, Newmark, NewmarkParams, NodalLoad, Rayleigh};
+use crate::error::Result;
+use crate::model::MemberKind;
+use crate::record::{Recorder, Stage};
+use crate::structure::{State, Structure};
+use crate::tsm::{Assembly, DofMap};
 use nalgebra::Vector3;
 
-/// Settings of one transient stage.
+/// A transient stage.
 #[derive(Clone, Debug)]
-pub struct Transient<'a> {
+pub struct Transient {
     pub stage: Stage,
     pub params: NewmarkParams,
-    pub rayleigh: Rayleigh,
+    /// Duration [s].
+    pub duration: f64,
+    /// With the structure's Rayleigh damping; undamped otherwise.
+    pub damped: bool,
     pub tangent: DampingTangent,
-    pub load: Option<&'a NodalLoad>,
-    pub newton: NewtonSettings,
-    /// Record every `every`-th step (and the last).
-    pub every: usize,
+    pub load: Option<NodalLoad>,
 }
 
 /// Figures of a finished transient stage.
@@ -44,106 +46,120 @@ pub struct TransientSummary {
     pub max_strut_compression: f64,
     /// Wall time of the stage, recording included [s].
     pub wall_seconds: f64,
-    #[serde(skip)]
-    pub final_positions: Vec<Vector3<f64>>,
 }
 
-impl Transient<'_> {
-    /// Runs from positions `x0` at rest.
-    pub fn run(
+impl TransientSummary {
+    /// Takes in one converged step at stage time `time`; `load_end` is when the load stops.
+    fn add_step(&mut self, nm: &Newmark, time: f64, load_end: f64, dt: f64, mechanical: &mut f64) {
+        let e = nm.energy;
+        self.max_kinetic = self.max_kinetic.max(e.kinetic);
+        self.max_energy = self.max_energy.max(e.kinetic.max(e.strain));
+        self.max_balance_error = self.max_balance_error.max(nm.balance_error());
+        let now = e.kinetic + e.strain;
+        if time - dt > load_end {
+            self.max_mechanical_rise = self.max_mechanical_rise.max(now - *mechanical);
+        }
+        *mechanical = now;
+        let asm = &nm.asm;
+        for ((mem, st), l0) in asm.model.members.iter().zip(&asm.states).zip(&asm.elements.rest) {
+            match mem.kind {
+                MemberKind::Cable => self.max_cable_stretch = self.max_cable_stretch.max(st.length / l0),
+                MemberKind::Strut => self.max_strut_compression = self.max_strut_compression.max(-st.force),
+            }
+        }
+    }
+}
+
+impl Transient {
+    fn integrator(&self, structure: &Structure, settings: &Settings) -> Integrator {
+        Integrator {
+            params: self.params,
+            damping: Damping {
+                rayleigh: if self.damped { structure.damping } else { Rayleigh::default() },
+                tangent: self.tangent,
+            },
+            newton: settings.newton,
+        }
+    }
+}
+
+impl Analysis for Transient {
+    type Summary = TransientSummary;
+
+    /// Runs from `state`'s positions and velocities, with the acceleration consistent
+    /// with the load at t = 0.
+    fn run(
         &self,
-        model: &Model,
-        elements: &Elements,
-        x0: Vec<Vector3<f64>>,
-        node_mass: &[f64],
+        structure: &Structure,
+        state: State,
+        settings: &Settings,
         recorder: &mut dyn Recorder,
-    ) -> Result<TransientSummary> {
-        let stage_name = self.stage.name();
+    ) -> Result<(State, TransientSummary)> {
+        let name = self.stage.name();
+        let model = &structure.model;
         let dofs = DofMap::new(model, &[]);
         let load_free = |t: f64, f: &mut [f64]| {
             f.fill(0.0);
-            if let Some(load) = self.load {
+            if let Some(load) = &self.load {
                 load.add_free(t, &dofs, f);
             }
         };
-        let mass = super::eigen::free_masses(&dofs, node_mass);
         let started = std::time::Instant::now();
-        let n = dofs.len();
-        let mut f0 = vec![0.0; n];
+        let mut f0 = vec![0.0; dofs.len()];
         load_free(0.0, &mut f0);
-        let asm = Assembly::new(model, elements, &dofs, x0);
-        let mut nm = Newmark::new(asm, mass, vec![0.0; n], f0, self.params, self.rayleigh, self.tangent, self.newton);
-        let steps = (self.params.duration / self.params.dt).round() as usize;
-        let load_end = self.load.map_or(0.0, |l| l.duration);
+        let v0 = state.free_velocities(&dofs);
+        let asm = Assembly::new(model, &structure.elements, &dofs, state.positions);
+        let mut nm = Newmark::new(asm, structure.free_masses(&dofs), v0, f0, &self.integrator(structure, settings));
+        let dt = self.params.dt;
+        let steps = (self.duration / dt).round() as usize;
+        let load_end = self.load.as_ref().map_or(0.0, |l| l.duration);
         let mut summary = TransientSummary {
             steps,
             ..Default::default()
         };
-        let rec = |e: Box<dyn std::error::Error + Send + Sync>| Error::Stage {
-            stage: stage_name,
-            reason: format!("recording failed: {e}"),
-        };
-        recorder.begin_stage(self.stage).map_err(rec)?;
-        let label = |d: usize| dofs.label(model, d);
-        // Frame buffers, reused for every recorded step.
-        let (mut velocities, mut forces, mut lengths) = (vec![Vector3::zeros(); model.node_count()], Vec::new(), Vec::new());
-        let mut record = |nm: &Newmark, step: usize, recorder: &mut dyn Recorder| -> Result<()> {
-            for (i, &v) in nm.v.iter().enumerate() {
-                let (n, a) = dofs.owner(i);
-                velocities[n][a] = v;
-            }
-            forces.clear();
-            forces.extend(nm.asm.states.iter().map(|s| s.force));
-            lengths.clear();
-            lengths.extend(nm.asm.states.iter().map(|s| s.length));
-            recorder
-                .frame(&Frame {
-                    step,
-                    time: nm.time,
-                    positions: &nm.asm.x,
-                    velocities: Some(&velocities),
-                    forces: &forces,
-                    lengths: &lengths,
-                    energy: nm.energy,
-                })
-                .map_err(rec)
+        recorder.begin_stage(self.stage).map_err(record_error(name))?;
+        let mut frames = FrameBuilder::new(model.node_count());
+        let mut record = |nm: &Newmark, step: usize, recorder: &mut dyn Recorder| {
+            frames
+                .record(recorder, &nm.asm, step, nm.time, Some(&nm.v), nm.energy)
+                .map_err(record_error(name))
         };
         record(&nm, 0, recorder)?;
         let mut mechanical = nm.energy.kinetic + nm.energy.strain;
         for step in 1..=steps {
-            let report = nm.advance(self.params.dt, &load_free, &label).map_err(|source| Error::Solve {
-                stage: stage_name,
-                step: Some(step),
-                time: Some(step as f64 * self.params.dt),
-                source,
-            })?;
+            let time = step as f64 * dt;
+            let report = nm
+                .advance(dt, &load_free)
+                .map_err(solve_error(name, Some(step), Some(time), structure, &dofs))?;
             // Re-anchor time to the step grid so that long runs do not drift.
-            nm.time = step as f64 * self.params.dt;
+            nm.time = time;
             summary.newton_iterations += report.iterations;
             summary.factorizations += report.factorizations;
-            let e = nm.energy;
-            summary.max_kinetic = summary.max_kinetic.max(e.kinetic);
-            summary.max_energy = summary.max_energy.max(e.kinetic.max(e.strain));
-            summary.max_balance_error = summary.max_balance_error.max(nm.balance_error());
-            let now = e.kinetic + e.strain;
-            if nm.time - self.params.dt > load_end {
-                summary.max_mechanical_rise = summary.max_mechanical_rise.max(now - mechanical);
-            }
-            mechanical = now;
-            for ((mem, st), l0) in model.members.iter().zip(&nm.asm.states).zip(&elements.rest) {
-                match mem.kind {
-                    MemberKind::Cable => summary.max_cable_stretch = summary.max_cable_stretch.max(st.length / l0),
-                    MemberKind::Strut => summary.max_strut_compression = summary.max_strut_compression.max(-st.force),
-                }
-            }
-            if step % self.every == 0 || step == steps {
+            summary.add_step(&nm, time, load_end, dt, &mut mechanical);
+            if step % settings.every == 0 || step == steps {
                 record(&nm, step, recorder)?;
             }
         }
-        recorder.end_stage(self.stage).map_err(rec)?;
+        recorder.end_stage(self.stage).map_err(record_error(name))?;
         summary.final_kinetic = nm.energy.kinetic;
         summary.wall_seconds = started.elapsed().as_secs_f64();
-        summary.final_positions = nm.asm.x;
-        Ok(summary)
+        Ok((final_state(&nm, &dofs), summary))
+    }
+}
+
+/// The converged end of a Newmark run as a state over every node.
+fn final_state(nm: &Newmark, dofs: &DofMap) -> State {
+    let n = nm.asm.x.len();
+    let (mut velocities, mut accelerations) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
+    for i in 0..dofs.len() {
+        let (node, a) = dofs.owner(i);
+        velocities[node][a] = nm.v[i];
+        accelerations[node][a] = nm.a[i];
+    }
+    State {
+        time: nm.time,
+        positions: nm.asm.x.clone(),
+        velocities,
+        accelerations,
     }
 }

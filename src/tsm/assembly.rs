@@ -1,6 +1,6 @@
 use super::{assemble_tangent, internal_force, member_states, DofMap, Elements, MemberState};
 use crate::model::Model;
-use crate::solve::{NewtonSettings, NewtonWorkspace, Scale, TangentSink};
+use crate::solve::{Scale, TangentSink};
 use nalgebra::Vector3;
 
 /// A structure evaluated at one configuration: positions of every node (supported and
@@ -44,14 +44,6 @@ impl<'a> Assembly<'a> {
             self.x[n][a] = v;
         }
         self.update();
-    }
-
-    /// Workspace for Newton on this assembly's free DOFs, with the linear solver and the
-    /// tangent reuse `settings` pick for a static or a time-stepping (`transient`) stage.
-    pub fn workspace(&self, settings: &NewtonSettings, transient: bool) -> NewtonWorkspace {
-        NewtonWorkspace::new(self.dofs.len(), settings.linear_solver, settings.tangent.reuses(transient), || {
-            super::tangent_pattern(self.model, self.dofs)
-        })
     }
 
     /// Free coordinates of the current `x`.

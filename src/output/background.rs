@@ -17,7 +17,7 @@
 //! recorder back and drops it, which records "failed: recorder dropped before finish" as a
 //! direct recorder would.
 
-use super::{EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, RecordResult, Recorder, Stage};
+use crate::record::{EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
 use nalgebra::Vector3;
 use std::sync::mpsc::{channel, sync_channel, Receiver, Sender, SyncSender};
 use std::thread::JoinHandle;
@@ -232,16 +232,16 @@ impl<R: Recorder + Send + 'static> Recorder for Background<R> {
     }
 
     /// Waits for the worker to write everything, then finishes on this thread.
-    fn finish(&mut self, status: &str) -> RecordResult {
+    fn finish(&mut self, outcome: &Outcome) -> RecordResult {
         let joined = self.join();
         let State::Direct(recorder) = &mut self.state else {
             return joined;
         };
-        match (&joined, status) {
-            (Err(e), "complete") => {
-                recorder.finish(&format!("failed: recording failed: {e}"))?;
+        match (&joined, outcome) {
+            (Err(e), Outcome::Complete) => {
+                recorder.finish(&Outcome::Failed(format!("recording failed: {e}")))?;
             }
-            _ => recorder.finish(status)?,
+            _ => recorder.finish(outcome)?,
         }
         joined
     }
@@ -316,8 +316,8 @@ fn refill<T: Copy>(v: &mut Vec<T>, src: &[T]) {
 mod tests {
     use super::*;
     use crate::model::generate::TowerSpec;
-    use crate::record::h5::tests::{drive, temp_path};
-    use crate::record::h5::Hdf5Recorder;
+    use crate::output::h5::tests::{drive, temp_path};
+    use crate::output::h5::Hdf5Recorder;
     use std::sync::{Arc, Mutex};
 
     fn small_tower() -> crate::model::Model {
@@ -359,8 +359,8 @@ mod tests {
             self.calls.lock().unwrap().push(format!("end {}", stage.name()));
             Ok(())
         }
-        fn finish(&mut self, status: &str) -> RecordResult {
-            self.calls.lock().unwrap().push(format!("finish {status}"));
+        fn finish(&mut self, outcome: &Outcome) -> RecordResult {
+            self.calls.lock().unwrap().push(format!("finish {outcome}"));
             Ok(())
         }
     }
@@ -374,11 +374,11 @@ mod tests {
             fail_at,
         };
         drive(&mut log(None), &model, 200, 1).unwrap();
-        log(None).finish("complete").unwrap();
+        log(None).finish(&Outcome::Complete).unwrap();
         let direct = std::mem::take(&mut *calls.lock().unwrap());
         let mut bg = Background::new(log(None), "test");
         drive(&mut bg, &model, 200, 1).unwrap();
-        bg.finish("complete").unwrap();
+        bg.finish(&Outcome::Complete).unwrap();
         assert_eq!(*calls.lock().unwrap(), direct);
         assert!(direct.len() > 3 * 200 && direct.last().unwrap() == "finish complete");
     }
@@ -396,7 +396,7 @@ mod tests {
         );
         // The failure shows at a later call, at the latest at `finish`.
         let _ = drive(&mut bg, &model, 10, 1);
-        let err = bg.finish("complete").unwrap_err();
+        let err = bg.finish(&Outcome::Complete).unwrap_err();
         assert_eq!(err.to_string(), "disk full");
         assert!(bg.frame(&OwnedFrame::default().as_frame()).is_err());
         let calls = calls.lock().unwrap();
@@ -410,11 +410,11 @@ mod tests {
         let path = temp_path("background.h5");
         let mut bg = Background::new(Hdf5Recorder::create(&path, "c", "").unwrap(), "h5");
         drive(&mut bg, &model, 700, 1).unwrap();
-        bg.finish("complete").unwrap();
+        bg.finish(&Outcome::Complete).unwrap();
         let file = hdf5::File::open(&path).unwrap();
         let kinetic = file.dataset("deployment/kinetic_energy").unwrap().read_raw::<f64>().unwrap();
         assert_eq!(kinetic, (0..=700).map(|s| s as f64).collect::<Vec<_>>());
-        assert_eq!(crate::record::h5::tests::status(&path), "complete");
+        assert_eq!(crate::output::h5::tests::status(&path), "complete");
         drop(file);
 
         let mut bg = Background::new(Hdf5Recorder::create(&path, "c", "").unwrap(), "h5");
@@ -426,6 +426,6 @@ mod tests {
         .unwrap();
         bg.begin_stage(Stage::FreeVibration).unwrap();
         drop(bg);
-        assert_eq!(crate::record::h5::tests::status(&path), "failed: recorder dropped before finish");
+        assert_eq!(crate::output::h5::tests::status(&path), "failed: recorder dropped before finish");
     }
 }

@@ -18,8 +18,8 @@
 //! sees grow.
 
 use super::chunk::ChunkEncoder;
-use super::{EigenRecord, FormFindRecord, Frame, ModelRecord, RecordResult, Recorder, Stage};
 use crate::model::AXES;
+use crate::record::{EigenRecord, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
 use hdf5::types::{FixedUnicode, VarLenUnicode};
 use hdf5::{Dataset, File, Group, H5Type, Location};
 use hdf5_sys::h5::{herr_t, hsize_t};
@@ -283,19 +283,19 @@ impl Recorder for Hdf5Recorder {
         self.open()?.close_stage()
     }
 
-    fn finish(&mut self, status: &str) -> RecordResult {
+    fn finish(&mut self, outcome: &Outcome) -> RecordResult {
         let mut open = self.open.take().ok_or("HDF5 recorder already finished")?;
         if open.current.is_some() {
             open.close_stage()?;
         }
-        open.set_status(status)
+        open.set_status(&outcome.to_string())
     }
 }
 
 impl Drop for Hdf5Recorder {
     fn drop(&mut self) {
         if self.open.is_some() {
-            let _ = self.finish("failed: recorder dropped before finish");
+            let _ = self.finish(&Outcome::Failed("recorder dropped before finish".into()));
         }
     }
 }
@@ -570,7 +570,7 @@ pub(super) mod tests {
     use crate::model::Model;
     use crate::record::{EigenRecord, Energy};
 
-    pub(in crate::record) fn temp_path(name: &str) -> std::path::PathBuf {
+    pub(in crate::output) fn temp_path(name: &str) -> std::path::PathBuf {
         let dir = std::env::temp_dir().join(format!("tsim-record-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         dir.join(name)
@@ -580,7 +580,7 @@ pub(super) mod tests {
     /// 0..=steps of free vibration (dt 0.01 s), folding and deployment, of which, like the
     /// stages, it records those with `step % every == 0` and the last. Energies are (step,
     /// 2 step, 3 step, 4 step).
-    pub(in crate::record) fn drive(rec: &mut dyn Recorder, model: &Model, steps: usize, every: usize) -> RecordResult {
+    pub(in crate::output) fn drive(rec: &mut dyn Recorder, model: &Model, steps: usize, every: usize) -> RecordResult {
         let (n, m) = (model.node_count(), model.members.len());
         let x0 = model.positions();
         rec.model(&ModelRecord {
@@ -637,7 +637,7 @@ pub(super) mod tests {
         Ok(())
     }
 
-    pub(in crate::record) fn status(path: &Path) -> String {
+    pub(in crate::output) fn status(path: &Path) -> String {
         let file = File::open(path).unwrap();
         file.attr("status")
             .unwrap()
@@ -660,7 +660,7 @@ pub(super) mod tests {
         // Stride 3 over steps 0..=10: the last step is not a multiple of 3.
         drive(&mut rec, &model, 10, 3).unwrap();
         assert_eq!(status(&path), "running");
-        rec.finish("complete").unwrap();
+        rec.finish(&Outcome::Complete).unwrap();
         assert_eq!(status(&path), "complete");
 
         let file = File::open(&path).unwrap();
@@ -732,8 +732,7 @@ pub(super) mod tests {
         let path = temp_path("chunks.h5");
         let mut rec = Hdf5Recorder::create(&path, "c", "").unwrap();
         drive(&mut rec, &model, 600, 1).unwrap();
-        let reason = format!("failed: {}", "é".repeat(400));
-        rec.finish(&reason).unwrap();
+        rec.finish(&Outcome::Failed("é".repeat(400))).unwrap();
         let file = File::open(&path).unwrap();
         let time = file.dataset("free_vibration/time").unwrap();
         assert_eq!(time.shape(), vec![601]);

@@ -31,8 +31,8 @@
 //! Log times are strictly increasing on every topic: a computed time that does not exceed
 //! the previous one is moved 1 ns past it.
 
-use super::{Energy, FormFindRecord, Frame, ModelRecord, RecordResult, Recorder, Stage};
 use crate::model::MemberKind;
+use crate::record::{Energy, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
 use foxglove::messages::{line_primitive, Color, LinePrimitive, Point3, SceneEntity, SceneUpdate, Timestamp};
 use foxglove::Encode;
 use nalgebra::Vector3;
@@ -438,7 +438,7 @@ impl Recorder for McapRecorder {
         self.log_state(Stage::FormFinding, 0, ns, record.positions, record.forces, None)
     }
 
-    fn eigen(&mut self, _record: &super::EigenRecord) -> RecordResult {
+    fn eigen(&mut self, _record: &crate::record::EigenRecord) -> RecordResult {
         let t = self.clock.static_step();
         self.log_stage(Stage::Eigen, t)
     }
@@ -459,12 +459,12 @@ impl Recorder for McapRecorder {
         Ok(())
     }
 
-    fn finish(&mut self, status: &str) -> RecordResult {
+    fn finish(&mut self, outcome: &Outcome) -> RecordResult {
         if let Some(stage) = self.stage {
             self.end_stage(stage)?;
         }
         let mut writer = self.writer.take().ok_or("MCAP recorder already finished")?;
-        let metadata = BTreeMap::from([("status".to_string(), status.to_string())]);
+        let metadata = BTreeMap::from([("status".to_string(), outcome.to_string())]);
         writer.write_metadata(&mcap::records::Metadata {
             name: "status".into(),
             metadata,
@@ -479,7 +479,7 @@ impl Drop for McapRecorder {
     /// saying why it ended early.
     fn drop(&mut self) {
         if self.writer.is_some() {
-            let _ = self.finish("failed: recorder dropped before finish");
+            let _ = self.finish(&Outcome::Failed("recorder dropped before finish".into()));
         }
     }
 }
@@ -488,7 +488,7 @@ impl Drop for McapRecorder {
 mod tests {
     use super::*;
     use crate::model::generate::TowerSpec;
-    use crate::record::h5::tests::{drive, temp_path};
+    use crate::output::h5::tests::{drive, temp_path};
 
     /// The patched records give the bytes the derive encodes, ids of any length included.
     #[test]
@@ -529,7 +529,7 @@ mod tests {
         let path = temp_path("replay.mcap");
         let mut rec = McapRecorder::create(&path, "case-7").unwrap();
         drive(&mut rec, &model, 10, 3).unwrap();
-        rec.finish("complete").unwrap();
+        rec.finish(&Outcome::Complete).unwrap();
 
         let bytes = std::fs::read(&path).unwrap();
         let mut times: BTreeMap<String, Vec<u64>> = BTreeMap::new();
@@ -589,6 +589,6 @@ mod tests {
             .collect();
         let (s, c) = (STRUT_WIDTH, CABLE_WIDTH);
         assert_eq!(summary, [(s, BROWN, 4), (s, GREY, 2), (c, RED, 14), (c, GREY, 4)]);
-        rec.finish("complete").unwrap();
+        rec.finish(&Outcome::Complete).unwrap();
     }
 }

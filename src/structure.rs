@@ -1,0 +1,108 @@
+//! The hand-off between stages: a [`Structure`] (what is simulated: topology, supports,
+//! laws and rest lengths, masses, damping) and a [`State`] (where it is: positions,
+//! velocities, accelerations, time). Every stage takes a structure and a converged state
+//! and returns the converged state it ends in.
+
+use crate::dynamics::Rayleigh;
+use crate::model::Model;
+use crate::tsm::{DofMap, Elements};
+use nalgebra::Vector3;
+
+/// A structure as every stage sees it.
+#[derive(Clone, Debug)]
+pub struct Structure {
+    /// Nodes, members, supports and groups.
+    pub model: Model,
+    /// Force law and rest length of every member.
+    pub elements: Elements,
+    /// Lumped mass of every node [kg]; empty for a structure that never moves
+    /// dynamically (form-finding's virtual one).
+    pub masses: Vec<f64>,
+    /// Rayleigh damping C = αM + βK, set by the eigen stage (zero until then).
+    pub damping: Rayleigh,
+}
+
+impl Structure {
+    /// A structure without mass or damping: form-finding's virtual elements.
+    pub fn massless(model: Model, elements: Elements) -> Self {
+        Structure {
+            model,
+            elements,
+            masses: Vec::new(),
+            damping: Rayleigh::default(),
+        }
+    }
+
+    /// Masses lumped from the members: `linear_density[m]` [kg/m] × rest length, half to
+    /// each end.
+    pub fn with_lumped_masses(model: Model, elements: Elements, linear_density: &[f64]) -> Self {
+        let masses = lumped_masses(&model, &elements.rest, linear_density);
+        Structure {
+            model,
+            elements,
+            masses,
+            damping: Rayleigh::default(),
+        }
+    }
+
+    /// Lumped mass on each free DOF of `dofs`.
+    pub fn free_masses(&self, dofs: &DofMap) -> Vec<f64> {
+        free_masses(dofs, &self.masses)
+    }
+
+    /// Strain energy of all members at positions `x` [J].
+    pub fn strain_energy(&self, x: &[Vector3<f64>]) -> f64 {
+        self.elements.strain_energy(&self.model, x)
+    }
+}
+
+/// Lumped masses: each member's linear density × rest length, half to each end.
+pub fn lumped_masses(model: &Model, rest: &[f64], linear_density: &[f64]) -> Vec<f64> {
+    let mut m = vec![0.0; model.node_count()];
+    for (k, mem) in model.members.iter().enumerate() {
+        let half = 0.5 * linear_density[k] * rest[k];
+        m[mem.nodes[0]] += half;
+        m[mem.nodes[1]] += half;
+    }
+    m
+}
+
+/// Lumped mass on each free DOF from nodal masses.
+pub fn free_masses(dofs: &DofMap, node_mass: &[f64]) -> Vec<f64> {
+    (0..dofs.len()).map(|i| node_mass[dofs.owner(i).0]).collect()
+}
+
+/// A converged state of a structure, over every node (supported directions included).
+#[derive(Clone, Debug, PartialEq)]
+pub struct State {
+    /// Time within the stage that produced it [s]; 0 for a static state.
+    pub time: f64,
+    pub positions: Vec<Vector3<f64>>,
+    pub velocities: Vec<Vector3<f64>>,
+    /// Accelerations [m/s²]: informative; a transient starting from this state recomputes
+    /// the acceleration consistent with its own loads and damping.
+    pub accelerations: Vec<Vector3<f64>>,
+}
+
+impl State {
+    /// At rest at `positions`, time 0.
+    pub fn at_rest(positions: Vec<Vector3<f64>>) -> Self {
+        let zeros = vec![Vector3::zeros(); positions.len()];
+        State {
+            time: 0.0,
+            velocities: zeros.clone(),
+            accelerations: zeros,
+            positions,
+        }
+    }
+
+    /// The velocity components on the free DOFs of `dofs`.
+    pub fn free_velocities(&self, dofs: &DofMap) -> Vec<f64> {
+        (0..dofs.len())
+            .map(|i| {
+                let (n, a) = dofs.owner(i);
+                self.velocities[n][a]
+            })
+            .collect()
+    }
+}
