@@ -75,16 +75,32 @@ impl TowerSpec {
         (self.strut_length.powi(2) - chord2).sqrt()
     }
 
+    /// Bottom-ring node i of stage s.
+    fn b(&self, s: usize, i: usize) -> usize {
+        2 * self.struts * s + i % self.struts
+    }
+
+    /// Top-ring node i of stage s.
+    fn t(&self, s: usize, i: usize) -> usize {
+        2 * self.struts * s + self.struts + i % self.struts
+    }
+
     /// Builds the model. Supports: z on every base node, x and y on base node 0, and on
     /// base node 1 the in-plane direction that best blocks rotation about z: n + 3
     /// constraints (8 for the paper's n = 5, leaving 52 DOF).
     pub fn build(&self) -> Model {
+        Model {
+            nodes: self.nodes(),
+            members: self.members(),
+            node_groups: self.node_groups(),
+        }
+    }
+
+    fn nodes(&self) -> Vec<Node> {
         let (n, k) = (self.struts, self.stages);
         let theta = Self::span_angle(n);
         let h = self.stage_height();
         let rise = h * (1.0 - self.overlap);
-        let b = |s: usize, i: usize| 2 * n * s + i % n;
-        let t = |s: usize, i: usize| 2 * n * s + n + i % n;
         let mut nodes = Vec::with_capacity(2 * n * k);
         for s in 0..k {
             let phi = -(PI / 2.0) * s as f64;
@@ -101,92 +117,64 @@ impl TowerSpec {
         }
         // Supports; node 1's in-plane direction is the larger component of its tangent.
         for i in 0..n {
-            nodes[b(0, i)].support[2] = true;
+            nodes[self.b(0, i)].support[2] = true;
         }
-        nodes[b(0, 0)].support = [true, true, true];
+        nodes[self.b(0, 0)].support = [true, true, true];
         let a1 = 2.0 * PI / n as f64;
         let axis = if a1.sin().abs() >= a1.cos().abs() { 0 } else { 1 };
-        nodes[b(0, 1)].support[axis] = true;
+        nodes[self.b(0, 1)].support[axis] = true;
+        nodes
+    }
 
+    fn members(&self) -> Vec<Member> {
+        let (n, k) = (self.struts, self.stages);
+        let (b, t) = (|s, i| self.b(s, i), |s, i| self.t(s, i));
         let mut members = Vec::new();
-        let mut add = |id: String, a: usize, c: usize, kind: MemberKind, group: String| {
+        let mut add = |name: &str, s: String, i: usize, nodes: [usize; 2], kind: MemberKind| {
             members.push(Member {
-                id,
-                nodes: [a, c],
+                id: format!("{name}{s}_{i}"),
+                nodes,
                 kind,
-                groups: vec![group],
+                groups: vec![format!("{name}{s}")],
             });
         };
         for s in 0..k {
             for i in 0..n {
-                add(format!("strut{s}_{i}"), b(s, i), t(s, i), MemberKind::Strut, format!("strut{s}"));
+                add("strut", s.to_string(), i, [b(s, i), t(s, i)], MemberKind::Strut);
             }
             for i in 0..n {
-                add(format!("side{s}_{i}"), b(s, i), t(s, i + 1), MemberKind::Cable, format!("side{s}"));
+                add("side", s.to_string(), i, [b(s, i), t(s, i + 1)], MemberKind::Cable);
             }
         }
         for i in 0..n {
-            add(
-                format!("ring_base_{i}"),
-                b(0, i),
-                b(0, i + 1),
-                MemberKind::Cable,
-                "ring_base".into(),
-            );
-            add(
-                format!("ring_top_{i}"),
-                t(k - 1, i),
-                t(k - 1, i + 1),
-                MemberKind::Cable,
-                "ring_top".into(),
-            );
+            add("ring_base", String::new(), i, [b(0, i), b(0, i + 1)], MemberKind::Cable);
+            add("ring_top", String::new(), i, [t(k - 1, i), t(k - 1, i + 1)], MemberKind::Cable);
         }
         for s in 0..k.saturating_sub(1) {
             for i in 0..n {
-                add(
-                    format!("saddle_a{s}_{i}"),
-                    b(s + 1, i),
-                    t(s, i),
-                    MemberKind::Cable,
-                    format!("saddle_a{s}"),
-                );
-                add(
-                    format!("saddle_b{s}_{i}"),
-                    b(s + 1, i),
-                    t(s, i + 1),
-                    MemberKind::Cable,
-                    format!("saddle_b{s}"),
-                );
-                add(
-                    format!("vertical_lo{s}_{i}"),
-                    b(s + 1, i),
-                    b(s, i),
-                    MemberKind::Cable,
-                    format!("vertical_lo{s}"),
-                );
-                add(
-                    format!("vertical_up{s}_{i}"),
-                    t(s + 1, i),
-                    t(s, i),
-                    MemberKind::Cable,
-                    format!("vertical_up{s}"),
-                );
+                let st = s.to_string();
+                add("saddle_a", st.clone(), i, [b(s + 1, i), t(s, i)], MemberKind::Cable);
+                add("saddle_b", st.clone(), i, [b(s + 1, i), t(s, i + 1)], MemberKind::Cable);
+                add("vertical_lo", st.clone(), i, [b(s + 1, i), b(s, i)], MemberKind::Cable);
+                add("vertical_up", st, i, [t(s + 1, i), t(s, i)], MemberKind::Cable);
             }
         }
+        members
+    }
+
+    /// `base`, `top` and (with more than one stage) `middle`: the inner rings.
+    fn node_groups(&self) -> std::collections::BTreeMap<String, Vec<usize>> {
+        let (n, k) = (self.struts, self.stages);
         let ring = |f: &dyn Fn(usize) -> usize| (0..n).map(f).collect::<Vec<_>>();
         let mut node_groups = std::collections::BTreeMap::new();
-        node_groups.insert("base".to_string(), ring(&|i| b(0, i)));
-        node_groups.insert("top".to_string(), ring(&|i| t(k - 1, i)));
+        node_groups.insert("base".to_string(), ring(&|i| self.b(0, i)));
+        node_groups.insert("top".to_string(), ring(&|i| self.t(k - 1, i)));
         let middle: Vec<usize> = (0..k.saturating_sub(1))
-            .flat_map(|s| ring(&|i| t(s, i)).into_iter().chain(ring(&|i| b(s + 1, i))))
+            .flat_map(|s| ring(&|i| self.t(s, i)).into_iter().chain(ring(&|i| self.b(s + 1, i))))
             .collect();
         if !middle.is_empty() {
             node_groups.insert("middle".to_string(), middle);
         }
-        Model {
-            nodes,
-            members,
-            node_groups,
-        }
+        node_groups
     }
 }
