@@ -4,6 +4,11 @@
 //! stage ([`stage`]): form-finding, substitution by real materials, eigen analysis, free
 //! vibration, folding and deployment, all solved by one Newton driver ([`solve`]).
 
+// `!(x > 0.0)` is how tsim writes "not positive, or NaN" (a NaN input must fail the
+// check, which `x <= 0.0` would let through); clippy's suggested `partial_cmp` form hides
+// that intent rather than showing it.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod config;
 pub mod dynamics;
 pub mod error;

@@ -106,8 +106,7 @@ fn try_newmark_sdof(
     m: f64,
     k: f64,
     rest_x: f64,
-    x0: f64,
-    v0: f64,
+    (x0, v0): (f64, f64),
     dt: f64,
     steps: usize,
     rayleigh: Rayleigh,
@@ -140,8 +139,8 @@ fn try_newmark_sdof(
     Ok(out)
 }
 
-fn newmark_sdof(m: f64, k: f64, rest_x: f64, x0: f64, v0: f64, dt: f64, steps: usize, rayleigh: Rayleigh) -> Vec<(f64, f64)> {
-    try_newmark_sdof(m, k, rest_x, x0, v0, dt, steps, rayleigh).unwrap_or_else(|e| panic!("a linear Newmark step failed: {e}"))
+fn newmark_sdof(m: f64, k: f64, rest_x: f64, start: (f64, f64), dt: f64, steps: usize, rayleigh: Rayleigh) -> Vec<(f64, f64)> {
+    try_newmark_sdof(m, k, rest_x, start, dt, steps, rayleigh).unwrap_or_else(|e| panic!("a linear Newmark step failed: {e}"))
 }
 
 /// Undamped: average acceleration is the trapezoidal rule on (x, v), whose amplification
@@ -164,7 +163,7 @@ fn newmark_sdof_matches_closed_form_recurrence() {
     let (x0, v0, dt, steps): (f64, f64, f64, usize) = (0.01, 0.3, 0.02, 500);
     let phi = 2.0 * (w * dt / 2.0).atan();
     let amplitude = (x0 * x0 + (v0 / w).powi(2)).sqrt();
-    let run = newmark_sdof(m, k, 1.0, x0, v0, dt, steps, Rayleigh::default());
+    let run = newmark_sdof(m, k, 1.0, (x0, v0), dt, steps, Rayleigh::default());
     let mut worst = 0.0_f64;
     for (n, &(x, v)) in run.iter().enumerate() {
         let a = n as f64 * phi;
@@ -197,7 +196,7 @@ fn newmark_damped_sdof_matches_amplification_matrix() {
     let a = Matrix2::new(0.0, 1.0, -k / m, -c / m);
     let i = Matrix2::identity();
     let t = (i - a * (dt / 2.0)).try_inverse().unwrap() * (i + a * (dt / 2.0));
-    let run = newmark_sdof(m, k, 1.0, x0, v0, dt, steps, rayleigh);
+    let run = newmark_sdof(m, k, 1.0, (x0, v0), dt, steps, rayleigh);
     let w = (k / m).sqrt();
     let amplitude = (x0 * x0 + (v0 / w).powi(2)).sqrt();
     let mut z = Vector2::new(x0, v0);
@@ -237,7 +236,7 @@ fn newmark_rayleigh_decay_matches_zeta() {
         beta: 0.0,
     };
     assert!((rayleigh.ratio_at(w) - zeta).abs() < 1e-15);
-    let run = newmark_sdof(m, k, 0.0, 0.01, 0.0, dt, 1200, rayleigh);
+    let run = newmark_sdof(m, k, 0.0, (0.01, 0.0), dt, 1200, rayleigh);
     let x: Vec<f64> = run.iter().map(|p| p.0).collect();
     let peaks: Vec<f64> = (1..x.len() - 1)
         .filter(|&n| x[n] > x[n - 1] && x[n] >= x[n + 1])
@@ -271,8 +270,8 @@ fn newmark_newton_floor_at_small_steps() {
     let (m, k): (f64, f64) = (2.0, 800.0);
     let dt = 2.0 * PI / (k / m).sqrt() / 1000.0;
     let rayleigh = Rayleigh { alpha: 2.0, beta: 0.0 };
-    assert!(try_newmark_sdof(m, k, 0.0, 0.01, 0.0, dt, 2000, rayleigh).is_ok(), "at the origin");
-    if let Err(e) = try_newmark_sdof(m, k, 1.0, 0.01, 0.0, dt, 2000, rayleigh) {
+    assert!(try_newmark_sdof(m, k, 0.0, (0.01, 0.0), dt, 2000, rayleigh).is_ok(), "at the origin");
+    if let Err(e) = try_newmark_sdof(m, k, 1.0, (0.01, 0.0), dt, 2000, rayleigh) {
         panic!("the same oscillator 1 m from the origin: {e}");
     }
 }

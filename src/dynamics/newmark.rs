@@ -195,6 +195,17 @@ impl<'a> Newmark<'a> {
         bisect(0.0, 1.0, max_cuts, &mut step, &merge).map(|(report, _)| report)
     }
 
+    /// Newmark's velocity at the end of a step of size dt ending at coordinates `u`, into
+    /// `v_next`: v_{n+1} = v_n + Δt((1 − γ) a_n + γ a_{n+1}), a_{n+1} = (u − base)/(βΔt²).
+    fn next_velocity(&mut self, u: &[f64], dt: f64) {
+        let (beta, gamma) = (self.params.beta, self.params.gamma);
+        let c_a = 1.0 / (beta * dt * dt);
+        let (v, a, base) = (&self.v, &self.a, &self.base);
+        for (i, v_next) in self.v_next.iter_mut().enumerate() {
+            *v_next = v[i] + dt * ((1.0 - gamma) * a[i] + gamma * (c_a * (u[i] - base[i])));
+        }
+    }
+
     /// Sets up the step to t + dt: the load at its end and the predictor.
     /// u_{n+1} = base + β dt² a_{n+1}, base = u_n + dt v_n + dt² (½ − β) a_n. Newton starts
     /// from a_{n+1} = a_n (constant acceleration), the usual predictor, in `trial`.
@@ -211,7 +222,7 @@ impl<'a> Newmark<'a> {
     fn step(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<NewtonReport, SolveError> {
         let n = self.mass.len();
         let t_next = self.time + dt;
-        let (beta, gamma) = (self.params.beta, self.params.gamma);
+        let beta = self.params.beta;
         self.predict(dt, load);
         let length = self.asm.model.size();
         let mut trial = std::mem::take(&mut self.trial);
@@ -237,10 +248,9 @@ impl<'a> Newmark<'a> {
         self.asm.set_free(&trial);
         let c_a = 1.0 / (beta * dt * dt);
         let (mut dw, mut dd) = (0.0, 0.0);
-        for i in 0..n {
-            let a_next = c_a * (trial[i] - self.base[i]);
-            self.v_next[i] = self.v[i] + dt * ((1.0 - gamma) * self.a[i] + gamma * a_next);
-            self.a[i] = a_next;
+        self.next_velocity(&trial, dt);
+        for (a, (u, base)) in self.a.iter_mut().zip(trial.iter().zip(&self.base)) {
+            *a = c_a * (u - base);
         }
         let mut fd_next = std::mem::take(&mut self.fd_next);
         damping_force(
@@ -295,12 +305,9 @@ impl Residual for StepProblem<'_, '_> {
     fn residual(&mut self, u: &[f64], r: &mut [f64]) -> Scale {
         let (c_a, _) = self.coefficients();
         let nm = &mut *self.nm;
-        let (gamma, dt) = (nm.params.gamma, self.dt);
         nm.asm.set_free(u);
+        nm.next_velocity(u, self.dt);
         let n = u.len();
-        for i in 0..n {
-            nm.v_next[i] = nm.v[i] + dt * ((1.0 - gamma) * nm.a[i] + gamma * c_a * (u[i] - nm.base[i]));
-        }
         let mut fd = std::mem::take(&mut nm.fd_next);
         damping_force(&nm.asm, &nm.rayleigh, &nm.mass, nm.damping_states(), &nm.v_next, &mut fd);
         let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);
