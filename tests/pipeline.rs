@@ -270,7 +270,10 @@ fn newmark_newton_floor_at_small_steps() {
     let (m, k): (f64, f64) = (2.0, 800.0);
     let dt = 2.0 * PI / (k / m).sqrt() / 1000.0;
     let rayleigh = Rayleigh { alpha: 2.0, beta: 0.0 };
-    assert!(try_newmark_sdof(m, k, 0.0, (0.01, 0.0), dt, 2000, rayleigh).is_ok(), "at the origin");
+    assert!(
+        try_newmark_sdof(m, k, 0.0, (0.01, 0.0), dt, 2000, rayleigh).is_ok(),
+        "at the origin"
+    );
     if let Err(e) = try_newmark_sdof(m, k, 1.0, (0.01, 0.0), dt, 2000, rayleigh) {
         panic!("the same oscillator 1 m from the origin: {e}");
     }
