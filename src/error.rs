@@ -10,14 +10,15 @@ pub enum Error {
     #[error("model: {0}")]
     Model(#[from] ModelError),
     /// A Newton solve failed; `at` names the free DOF the error is about ("node `t3`
-    /// direction z"), labelled by the stage, which knows the model.
-    #[error("{stage}{}: {source}{}", step_text(*.step, *.time), at.as_ref().map(|a| format!(" at {a}")).unwrap_or_default())]
+    /// direction z"), labelled by the stage, which knows the model (a `Box<str>`, not a
+    /// `String`: it keeps `Error` small enough to return by value everywhere).
+    #[error("{stage}{}: {}", step_text(*.step, *.time), source.describe(at.as_deref()))]
     Solve {
         stage: &'static str,
         step: Option<usize>,
         time: Option<f64>,
         source: SolveError,
-        at: Option<String>,
+        at: Option<Box<str>>,
     },
     #[error("substitution: member `{member}`: {reason}")]
     Substitution { member: String, reason: String },

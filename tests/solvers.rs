@@ -84,3 +84,73 @@ fn matrix_free_product_and_sparse_solve_match_dense() {
         assert!((back - v[i]).abs() <= 1e-10, "row {i}: K x = {back} vs {}", v[i]);
     }
 }
+
+/// A tensioned tower (every member 1 % longer than its rest length: K_T is positive
+/// definite) with one extra node hanging on a single slack-free bar along x: that node's
+/// y and z directions have no stiffness at all, so the tangent is singular exactly there.
+/// The error must name that node and one of those directions, on the dense path (small
+/// tower) and on the sparse path (above 600 free DOF, where faer's pivot index is in the
+/// fill-reducing ordering and must be mapped back).
+#[test]
+fn a_singular_tangent_names_the_node_and_direction() {
+    use std::sync::Arc;
+    use tsim::law::{ForceLaw, LinearElastic};
+    use tsim::model::{Member, MemberKind, Node};
+    use tsim::stage::formfind::SelfEquilibrium;
+    use tsim::stage::{Analysis, Settings};
+    use tsim::structure::{State, Structure};
+    use tsim::tsm::Elements;
+
+    for (stages, sparse) in [(2, false), (20, true)] {
+        let mut model = TowerSpec {
+            struts: 12,
+            stages,
+            ..TowerSpec::paper()
+        }
+        .build();
+        let top = model.node_groups["top"][0];
+        model.nodes.push(Node {
+            id: "dangle".into(),
+            xyz: model.nodes[top].xyz + nalgebra::Vector3::new(1.0, 0.0, 0.0),
+            support: [false; 3],
+        });
+        let dangle = model.nodes.len() - 1;
+        model.members.push(Member {
+            id: "hanger".into(),
+            nodes: [top, dangle],
+            kind: MemberKind::Cable,
+            groups: vec![],
+        });
+        model.validate().unwrap();
+        let x = model.positions();
+        let law: Arc<dyn ForceLaw> = Arc::new(LinearElastic {
+            ea: 1e6,
+            tension_only: false,
+        });
+        let rest = model
+            .members
+            .iter()
+            .map(|m| {
+                let l = (x[m.nodes[1]] - x[m.nodes[0]]).norm();
+                if m.id == "hanger" {
+                    l
+                } else {
+                    0.99 * l
+                }
+            })
+            .collect();
+        let laws = vec![law; model.members.len()];
+        let dof = 3 * model.node_count() - model.support_count();
+        assert_eq!(dof > 600, sparse, "{dof} free DOF");
+        let structure = Structure::massless(model, Elements { laws, rest });
+        let err = SelfEquilibrium::GIVEN
+            .run(&structure, State::at_rest(x), &Settings::default(), &mut NoRecorder)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("singular"), "{err}");
+        assert!(
+            err.contains("node `dangle` direction y") || err.contains("node `dangle` direction z"),
+            "{dof} DOF: {err}"
+        );
+    }
+}

@@ -5,21 +5,33 @@
 //! with it again.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltError;
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::linalg::cholesky::llt::{factor as llt_factor, solve as llt_solve};
 use faer::linalg::lu::partial_pivoting::{factor as lu_factor, solve as lu_solve};
 use faer::perm::PermRef;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering};
 use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuRef, NumericLu, SymbolicLu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum LinearError {
-    /// Pivot of free DOF `dof` vanished relative to the largest one (the sparse LU does
-    /// not say which DOF: `None`, ratio 0).
-    #[error("singular tangent at free DOF {dof:?} (pivot ratio {ratio:.1e})")]
-    Singular { dof: Option<usize>, ratio: f64 },
+    /// The matrix is singular (or, for the sparse path, not factorizable) at free DOF
+    /// `dof`, an index in the caller's numbering (the matrix's row/column). `ratio`: the
+    /// pivot relative to the largest one, where the factorization measures it (dense LU).
+    #[error("singular tangent at {}{}", dof_text(*.dof), ratio_text(*.ratio))]
+    Singular { dof: Option<usize>, ratio: Option<f64> },
+}
+
+/// "free DOF 3" for error messages (the caller that knows the model adds its name).
+pub(super) fn dof_text(dof: Option<usize>) -> String {
+    dof.map_or_else(|| "an unidentified free DOF".to_string(), |d| format!("free DOF {d}"))
+}
+
+/// " (pivot ratio 1.0e-16)", or nothing where no ratio was measured.
+pub(super) fn ratio_text(ratio: Option<f64>) -> String {
+    ratio.map_or_else(String::new, |r| format!(" (pivot ratio {r:.1e})"))
 }
 
 /// Receives matrix entries (row, column, value), added to what is there.
@@ -137,13 +149,18 @@ impl TangentSolver for DenseSolver {
             MemStack::new(&mut self.mem),
             Default::default(),
         );
+        // faer divides by an exactly zero pivot, so the pivots after it are NaN; their
+        // ratios, +NaN after abs(), sort above every number, so the zero one is named.
         let max = (0..n).map(|j| self.k[(j, j)].abs()).fold(0.0, f64::max);
         if let Some((dof, ratio)) = (0..n)
             .map(|j| (j, self.k[(j, j)].abs() / max))
-            .filter(|&(_, r)| !(r > SINGULAR_PIVOT))
+            .filter(|&(_, r)| r.is_nan() || r <= SINGULAR_PIVOT)
             .min_by(|a, b| a.1.total_cmp(&b.1))
         {
-            return Err(LinearError::Singular { dof: Some(dof), ratio });
+            return Err(LinearError::Singular {
+                dof: Some(dof),
+                ratio: Some(ratio),
+            });
         }
         self.factored = Factored::Lu;
         Ok(())
@@ -180,6 +197,9 @@ pub struct SparseSolver {
     mem: MemBuffer,
     lu: Option<(SymbolicLu<usize>, NumericLu<usize, f64>, MemBuffer)>,
     factored: Factored,
+    /// The DOF at which the last Cholesky failed: the sparse LU names none, so an LU
+    /// failure is reported there.
+    failed_pivot: Option<usize>,
     /// Per element, the value slot of each of its 36 block entries (`u32::MAX`: not
     /// free), found once by binary search so that assembly is a direct scatter.
     slots: Vec<Option<[u32; 36]>>,
@@ -220,6 +240,7 @@ impl SparseSolver {
             mem: MemBuffer::new(req),
             lu: None,
             factored: Factored::None,
+            failed_pivot: None,
             slots: Vec::new(),
         }
     }
@@ -229,6 +250,24 @@ impl SparseSolver {
     fn slot(&self, row: usize, col: usize) -> usize {
         let (lo, hi) = (self.col_ptr[col], self.col_ptr[col + 1]);
         lo + self.row_idx[lo..hi].binary_search(&row).expect("entry inside the tangent pattern")
+    }
+
+    /// The free DOF (caller's numbering) of the pivot at which the Cholesky failed.
+    fn pivot_dof(&self, error: LltError) -> usize {
+        // `factorize_numeric_llt` returns the dense factorization's error as is, not the
+        // `sparse::linalg::LltError` wrapper of the high-level API.
+        let LltError::NonPositivePivot { index } = error;
+        // faer 0.24.4 counts the failed pivot from 1 in the simplicial factorization
+        // (sparse/linalg/cholesky.rs:1002, `index: *k + 1`) and from 0 in the supernodal one
+        // (cholesky.rs:3256, `index + s_start` over the dense 0-based index); the tests
+        // `sparse_*_names_the_zero_dof` pin both.
+        let permuted = match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(_) => index - 1,
+            SymbolicCholeskyRaw::Supernodal(_) => index,
+        };
+        // The factored matrix is P A Pᵀ with new index perm_inv[old]
+        // (sparse/utils.rs:225), so the old index is perm_fwd[new].
+        self.symbolic.perm().map_or(permuted, |p| p.arrays().0[permuted])
     }
 }
 
@@ -280,10 +319,17 @@ impl TangentSolver for SparseSolver {
             MemStack::new(&mut self.mem),
             Default::default(),
         );
-        if llt.is_ok() {
-            self.factored = Factored::Cholesky;
-            return Ok(());
+        match llt {
+            Ok(_) => {
+                self.factored = Factored::Cholesky;
+                return Ok(());
+            }
+            Err(e) => self.failed_pivot = Some(self.pivot_dof(e)),
         }
+        let singular = LinearError::Singular {
+            dof: self.failed_pivot,
+            ratio: None,
+        };
         let (symbolic, numeric, mem) = self.lu.get_or_insert_with(|| {
             let symbolic = factorize_symbolic_lu(structure, Default::default()).expect("symbolic LU of a valid pattern");
             let req = StackReq::any_of(&[
@@ -294,7 +340,7 @@ impl TangentSolver for SparseSolver {
         });
         symbolic
             .factorize_numeric_lu(numeric, a, Par::Seq, MemStack::new(mem), Default::default())
-            .map_err(|_| LinearError::Singular { dof: None, ratio: 0.0 })?;
+            .map_err(|_| singular)?;
         self.factored = Factored::Lu;
         Ok(())
     }
@@ -312,10 +358,108 @@ impl TangentSolver for SparseSolver {
                 if rhs.iter().all(|v| v.is_finite()) {
                     Ok(())
                 } else {
-                    Err(LinearError::Singular { dof: None, ratio: 0.0 })
+                    Err(LinearError::Singular {
+                        dof: self.failed_pivot,
+                        ratio: None,
+                    })
                 }
             }
             _ => panic!("TangentSolver::solve before a successful factor()"),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Entries (both triangles) of a symmetric matrix with −1 between DOFs that are
+    /// `neighbours` and 1 + (number of neighbours) on the diagonal: diagonally dominant,
+    /// hence positive definite, so every failure below comes from the zeroed DOF.
+    fn laplacian(n: usize, neighbours: impl Fn(usize, usize) -> bool) -> Vec<(usize, usize, f64)> {
+        let mut entries = Vec::new();
+        for i in 0..n {
+            let mut degree = 0.0;
+            for j in (0..n).filter(|&j| j != i && neighbours(i, j)) {
+                entries.push((i, j, -1.0));
+                degree += 1.0;
+            }
+            entries.push((i, i, degree + 1.0));
+        }
+        entries
+    }
+
+    /// 5-point stencil on an m × m grid.
+    fn grid(m: usize) -> Vec<(usize, usize, f64)> {
+        laplacian(m * m, |i, j| {
+            let ((ri, ci), (rj, cj)) = ((i / m, i % m), (j / m, j % m));
+            ri.abs_diff(rj) + ci.abs_diff(cj) == 1
+        })
+    }
+
+    /// Every DOF coupled to the `w` on either side.
+    fn band(n: usize, w: usize) -> Vec<(usize, usize, f64)> {
+        laplacian(n, |i, j| i.abs_diff(j) <= w)
+    }
+
+    /// Assembles `entries` with row and column `zero` left out, factors and solves.
+    fn factor_and_solve(
+        solver: &mut dyn TangentSolver,
+        n: usize,
+        entries: &[(usize, usize, f64)],
+        zero: Option<usize>,
+    ) -> Result<(), LinearError> {
+        solver.clear();
+        for &(i, j, v) in entries.iter().filter(|&&(i, j, _)| zero != Some(i) && zero != Some(j)) {
+            solver.add(i, j, v);
+        }
+        solver.factor()?;
+        let mut x = vec![1.0; n];
+        solver.solve(&mut x)
+    }
+
+    fn assert_names_zero_dofs(solver: &mut dyn TangentSolver, n: usize, entries: &[(usize, usize, f64)], ks: &[usize]) {
+        factor_and_solve(solver, n, entries, None).expect("the full matrix is positive definite");
+        for &k in ks {
+            let err = factor_and_solve(solver, n, entries, Some(k));
+            assert!(
+                matches!(err, Err(LinearError::Singular { dof: Some(d), .. }) if d == k),
+                "zero DOF {k}: {err:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn dense_names_the_zero_dof() {
+        for (n, entries) in [(36, grid(6)), (300, band(300, 20))] {
+            let ks = [0, 7, n / 2, n - 2, n - 1];
+            assert_names_zero_dofs(&mut DenseSolver::new(n), n, &entries, &ks);
+        }
+    }
+
+    /// A sparse solver on `entries`, after checking which faer factorization it uses and
+    /// that AMD moves some of `ks`, in a way that tells its two directions apart.
+    fn sparse(n: usize, entries: &[(usize, usize, f64)], ks: &[usize], supernodal: bool) -> SparseSolver {
+        let solver = SparseSolver::new(n, entries.iter().map(|&(i, j, _)| (i, j)));
+        assert_eq!(matches!(solver.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)), supernodal);
+        let (_, inv) = solver.symbolic.perm().expect("an AMD ordering").arrays();
+        assert!(ks.iter().any(|&k| inv[inv[k]] != k), "AMD moves none of {ks:?} off an involution");
+        solver
+    }
+
+    #[test]
+    fn sparse_simplicial_names_the_zero_dof() {
+        let (n, entries) = (64, grid(8));
+        let ks = [0, 9, 27, 36, 63];
+        assert_names_zero_dofs(&mut sparse(n, &entries, &ks, false), n, &entries, &ks);
+    }
+
+    /// A band of 2 × 100 + 1: L's columns hold ~100 entries, past faer's supernodal
+    /// threshold (flops / nnz(L) > 40).
+    #[test]
+    fn sparse_supernodal_names_the_zero_dof() {
+        let (n, entries) = (3000, band(3000, 100));
+        let ks = [0, 1, 1234, 1500, 2998, 2999];
+        assert_names_zero_dofs(&mut sparse(n, &entries, &ks, true), n, &entries, &ks);
     }
 }

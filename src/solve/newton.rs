@@ -1,4 +1,4 @@
-use super::linear::{DenseSolver, LinearError, SparseSolver, TangentSink, TangentSolver};
+use super::linear::{dof_text, ratio_text, DenseSolver, LinearError, SparseSolver, TangentSink, TangentSolver};
 
 /// Convergence settings of the Newton-Raphson driver (one struct for every stage).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -92,14 +92,14 @@ pub struct NewtonWorkspace {
 
 impl NewtonWorkspace {
     /// `pattern` lists the (row, column) entries the tangent can have (used by the sparse
-    /// solver); `transient`: a time-stepping stage ([`TangentUpdate::reuses`]).
+    /// solver); `settings` pick the linear solver and, with `transient` (a time-stepping
+    /// stage), whether factorizations are reused ([`TangentUpdate::reuses`]).
     pub fn new<P: IntoIterator<Item = (usize, usize)>>(
         n: usize,
         settings: &NewtonSettings,
         transient: bool,
         pattern: impl FnOnce() -> P,
     ) -> Self {
-        let reuse = settings.tangent.reuses(transient);
         let solver: Box<dyn TangentSolver> = match settings.linear_solver {
             LinearSolverChoice::Dense => Box::new(DenseSolver::new(n)),
             LinearSolverChoice::Auto if n <= DENSE_LIMIT => Box::new(DenseSolver::new(n)),
@@ -108,7 +108,7 @@ impl NewtonWorkspace {
         NewtonWorkspace {
             r: vec![0.0; n],
             solver,
-            reuse,
+            reuse: settings.tangent.reuses(transient),
             factored: false,
             history: Vec::with_capacity(64),
         }
@@ -161,27 +161,92 @@ pub struct NewtonReport {
     pub residual: f64,
 }
 
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub enum SolveError {
-    #[error("Newton did not converge in {iterations} iterations: residual {residual:.3e} N (tolerance {tolerance:.3e} N), last increment {increment:.3e} m")]
+    /// The iteration cap was reached. Both criteria are kept: the force residual max|r|
+    /// against `tolerance` [N], the last increment max|Δu| against `increment_tolerance`
+    /// [m]; `worst_dof` has the largest residual.
     NotConverged {
         iterations: usize,
         residual: f64,
         tolerance: f64,
         increment: f64,
+        increment_tolerance: f64,
+        worst_dof: usize,
     },
-    #[error("residual became non-finite at iteration {iteration} (diverged)")]
-    NonFinite { iteration: usize },
-    #[error("singular tangent stiffness (pivot ratio {ratio:.1e}): a mechanism or instability")]
-    Singular { dof: Option<usize>, ratio: f64 },
+    /// The residual (or the increment) became inf/NaN; `dof`: its first non-finite entry.
+    NonFinite { iteration: usize, dof: Option<usize> },
+    /// The tangent is singular at free DOF `dof` (see [`LinearError::Singular`]).
+    Singular { dof: Option<usize>, ratio: Option<f64> },
 }
 
 impl SolveError {
-    /// The free DOF the error is about, where known.
+    /// The free DOF the error is about (worst residual, non-finite entry, or singular
+    /// pivot), for a caller that knows the model to name.
     pub fn dof(&self) -> Option<usize> {
-        match self {
-            SolveError::Singular { dof, .. } => *dof,
-            _ => None,
+        match *self {
+            SolveError::NotConverged { worst_dof, .. } => Some(worst_dof),
+            SolveError::NonFinite { dof, .. } | SolveError::Singular { dof, .. } => dof,
+        }
+    }
+}
+
+impl From<LinearError> for SolveError {
+    fn from(LinearError::Singular { dof, ratio }: LinearError) -> Self {
+        SolveError::Singular { dof, ratio }
+    }
+}
+
+impl std::error::Error for SolveError {}
+
+impl std::fmt::Display for SolveError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.describe(None))
+    }
+}
+
+impl SolveError {
+    /// The message, with the DOF it is about called `label` ("node `t3` direction z")
+    /// where the caller knows the model, else "free DOF 7".
+    pub fn describe(&self, label: Option<&str>) -> String {
+        let at = |dof: Option<usize>| label.map_or_else(|| dof_text(dof), str::to_string);
+        match *self {
+            SolveError::NotConverged {
+                iterations,
+                residual,
+                tolerance,
+                increment,
+                increment_tolerance,
+                worst_dof,
+            } => {
+                let force = |verb| format!("force residual {residual:.3e} N {verb} its tolerance {tolerance:.3e} N");
+                let disp = |verb| format!("displacement increment {increment:.3e} m {verb} its tolerance {increment_tolerance:.3e} m");
+                let (what, setting) = match (residual > tolerance, increment > increment_tolerance) {
+                    (true, false) => (format!("{} ({})", force("exceeds"), disp("met")), "`newton.force_tolerance`"),
+                    (false, true) => (format!("{} ({})", disp("exceeds"), force("met")), "`newton.displacement_tolerance`"),
+                    // Both met is convergence, not an error.
+                    _ => (
+                        format!("{} and {}", force("exceeds"), disp("exceeds")),
+                        "`newton.force_tolerance`, `newton.displacement_tolerance`",
+                    ),
+                };
+                format!(
+                    "Newton did not converge in {iterations} iterations: {what}; largest residual at {}; \
+                     raise {setting} or `newton.max_iterations`",
+                    at(Some(worst_dof))
+                )
+            }
+            SolveError::NonFinite { iteration, dof } => {
+                format!(
+                    "residual or increment became non-finite at {} in iteration {iteration} (diverged)",
+                    at(dof)
+                )
+            }
+            SolveError::Singular { dof, ratio } => format!(
+                "singular tangent stiffness at {}{}: a mechanism or instability there",
+                at(dof),
+                ratio_text(ratio)
+            ),
         }
     }
 }
@@ -190,7 +255,8 @@ impl SolveError {
 /// Converged when max|r| ≤ tol_f·force + roundoff and the last increment max|Δu| ≤
 /// tol_u·`length` (a start already in balance needs no increment). With reuse on, the
 /// factorization held in `ws` (possibly from an earlier solve) is used while the residual
-/// keeps falling [`REUSE_CONTRACTION`]-fold per iteration.
+/// keeps falling [`REUSE_CONTRACTION`]-fold per iteration. Errors name a free DOF by
+/// index ([`SolveError::dof`]); the caller knows the model that labels it.
 pub fn newton(
     problem: &mut impl Residual,
     u: &mut [f64],
@@ -206,6 +272,21 @@ pub fn newton(
     result
 }
 
+/// max|v| and where it is, or `Err` with the first non-finite entry. (`f64::max` skips
+/// NaN, so a fold with it reads an all-NaN vector as 0, i.e. converged.)
+fn max_abs(v: &[f64]) -> Result<(f64, usize), usize> {
+    let mut worst = (0.0, 0);
+    for (i, &x) in v.iter().enumerate() {
+        if !x.is_finite() {
+            return Err(i);
+        }
+        if x.abs() > worst.0 {
+            worst = (x.abs(), i);
+        }
+    }
+    Ok(worst)
+}
+
 fn iterate(
     problem: &mut impl Residual,
     u: &mut [f64],
@@ -217,17 +298,17 @@ fn iterate(
     let mut factorizations = 0;
     // max|r| before the last increment (∞ at the start: a held factorization gets a try).
     let mut previous = f64::INFINITY;
-    let disp_tol = settings.displacement_tolerance * length;
+    let increment_tolerance = settings.displacement_tolerance * length;
     ws.history.clear();
     for iteration in 0..=settings.max_iterations {
         let scale = problem.residual(u, &mut ws.r);
-        let res = ws.r.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        let (res, worst_dof) = max_abs(&ws.r).map_err(|dof| {
+            ws.history.push(ws.r[dof].abs());
+            SolveError::NonFinite { iteration, dof: Some(dof) }
+        })?;
         ws.history.push(res);
-        if !res.is_finite() {
-            return Err(SolveError::NonFinite { iteration });
-        }
         let tolerance = settings.force_tolerance * scale.force + scale.roundoff;
-        if res <= tolerance && (iteration == 0 || increment <= disp_tol) {
+        if res <= tolerance && (iteration == 0 || increment <= increment_tolerance) {
             return Ok(NewtonReport {
                 iterations: iteration,
                 factorizations,
@@ -240,20 +321,21 @@ fn iterate(
                 residual: res,
                 tolerance,
                 increment,
+                increment_tolerance,
+                worst_dof,
             });
         }
-        let singular = |LinearError::Singular { dof, ratio }| SolveError::Singular { dof, ratio };
         if !(ws.reuse && ws.factored && res <= REUSE_CONTRACTION * previous) {
             ws.factored = false;
             ws.solver.clear();
             problem.tangent(&mut *ws.solver);
-            ws.solver.factor().map_err(singular)?;
+            ws.solver.factor()?;
             ws.factored = true;
             factorizations += 1;
         }
         previous = res;
-        ws.solver.solve(&mut ws.r).map_err(singular)?;
-        increment = ws.r.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        ws.solver.solve(&mut ws.r)?;
+        (increment, _) = max_abs(&ws.r).map_err(|dof| SolveError::NonFinite { iteration, dof: Some(dof) })?;
         let damping = (settings.max_step * length / increment).min(1.0);
         for (ui, di) in u.iter_mut().zip(&ws.r) {
             *ui += damping * di;
@@ -344,5 +426,129 @@ mod tests {
         let (u, fresh) = solve(1010.0, u, TangentUpdate::Reuse, &mut ws);
         assert_root(u, 1010.0);
         assert_eq!(fresh.factorizations, 1, "{fresh:?}");
+    }
+
+    /// A residual `first` at the first evaluation and `later` after, whatever u is;
+    /// tangent `stiffness`·I (a wrong one on purpose).
+    struct Scripted {
+        first: [f64; 2],
+        later: [f64; 2],
+        stiffness: f64,
+        calls: usize,
+    }
+
+    impl Residual for Scripted {
+        fn residual(&mut self, _u: &[f64], r: &mut [f64]) -> Scale {
+            r.copy_from_slice(if self.calls == 0 { &self.first } else { &self.later });
+            self.calls += 1;
+            Scale { force: 1.0, roundoff: 0.0 }
+        }
+
+        fn tangent(&mut self, k: &mut dyn TangentSink) {
+            k.add(0, 0, self.stiffness);
+            k.add(1, 1, self.stiffness);
+        }
+    }
+
+    fn run(first: [f64; 2], later: [f64; 2], stiffness: f64) -> Result<NewtonReport, SolveError> {
+        let settings = NewtonSettings {
+            max_iterations: 5,
+            ..Default::default()
+        };
+        let mut ws = NewtonWorkspace::new(2, &settings, false, Vec::new);
+        let mut problem = Scripted {
+            first,
+            later,
+            stiffness,
+            calls: 0,
+        };
+        newton(&mut problem, &mut [0.0; 2], &settings, 1.0, &mut ws)
+    }
+
+    /// Tolerances: 1e-10 N (force scale 1) and 1e-10 m (length 1).
+    #[test]
+    fn not_converged_names_the_failed_criterion_and_the_worst_dof() {
+        // A residual of 2 N that the stiff tangent turns into 2e-20 m increments.
+        let force = run([1.0, -2.0], [1.0, -2.0], 1e20).unwrap_err();
+        assert!(
+            matches!(
+                force,
+                SolveError::NotConverged {
+                    iterations: 5,
+                    worst_dof: 1,
+                    ..
+                }
+            ),
+            "{force:?}"
+        );
+        assert_eq!(force.dof(), Some(1));
+        let text = force.to_string();
+        assert!(
+            text.contains("did not converge") && text.contains("force residual 2.000e0 N exceeds"),
+            "{text}"
+        );
+        assert!(text.contains("displacement increment 2.000e-20 m met"), "{text}");
+        assert!(
+            text.contains("`newton.force_tolerance`") && !text.contains("`newton.displacement_tolerance`"),
+            "{text}"
+        );
+        assert!(text.contains("`newton.max_iterations`") && text.contains("free DOF 1"), "{text}");
+
+        // After the start a residual of 2e-12 N that the soft tangent turns into 2e-6 m.
+        let disp = run([1.0, -2.0], [2e-12, 1e-12], 1e-6).unwrap_err();
+        assert!(matches!(disp, SolveError::NotConverged { worst_dof: 0, .. }), "{disp:?}");
+        let text = disp.to_string();
+        assert!(
+            text.contains("did not converge") && text.contains("displacement increment 2.000e-6 m exceeds"),
+            "{text}"
+        );
+        assert!(text.contains("force residual 2.000e-12 N met"), "{text}");
+        assert!(
+            text.contains("`newton.displacement_tolerance`") && !text.contains("`newton.force_tolerance`"),
+            "{text}"
+        );
+
+        let both = run([1.0, -2.0], [1.0, -2.0], 1.0).unwrap_err().to_string();
+        assert!(
+            both.contains("force residual 2.000e0 N exceeds") && both.contains("displacement increment 2.000e0 m exceeds"),
+            "{both}"
+        );
+        assert!(both.contains("`newton.force_tolerance`, `newton.displacement_tolerance`"), "{both}");
+    }
+
+    #[test]
+    fn a_nan_residual_is_non_finite_not_converged() {
+        let nan = [f64::NAN; 2];
+        assert_eq!(
+            run(nan, nan, 1.0),
+            Err(SolveError::NonFinite {
+                iteration: 0,
+                dof: Some(0)
+            })
+        );
+        let err = run([1.0, -2.0], [1.0, f64::NAN], 1.0).unwrap_err();
+        assert_eq!(
+            err,
+            SolveError::NonFinite {
+                iteration: 1,
+                dof: Some(1)
+            }
+        );
+        assert_eq!(err.dof(), Some(1));
+    }
+
+    /// A tangent of 1e-300 overflows the increment of the 2e10 N residual at DOF 0 to ∞
+    /// (the one of the 1e-10 N residual at DOF 1 stays finite), which must not pass for
+    /// an increment (before the fix: damped to zero, then not converged).
+    #[test]
+    fn a_non_finite_increment_is_non_finite() {
+        let r = [2e10, 1e-10];
+        assert_eq!(
+            run(r, r, 1e-300),
+            Err(SolveError::NonFinite {
+                iteration: 0,
+                dof: Some(0)
+            })
+        );
     }
 }

@@ -58,7 +58,7 @@ fn solve_error<'a>(
         stage,
         step,
         time,
-        at: source.dof().map(|d| dofs.label(&structure.model, d)),
+        at: source.dof().map(|d| dofs.label(&structure.model, d).into()),
         source,
     }
 }
