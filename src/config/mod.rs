@@ -27,9 +27,13 @@ pub fn located(origin: &str, text: &str, field: &str) -> String {
 
 /// Parses and validates one case configuration. `origin` names the file in errors.
 pub fn parse_case(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
-    let cfg: CaseConfig = serde_saphyr::from_str(text).map_err(|e| ConfigError::Syntax {
-        file: origin.to_string(),
-        message: e.to_string(),
+    let cfg: CaseConfig = serde_saphyr::from_str(text).map_err(|e| {
+        let message = e.to_string();
+        ConfigError::Syntax {
+            file: origin.to_string(),
+            // The CLI adds its own `error: `.
+            message: message.strip_prefix("error: ").unwrap_or(&message).to_string(),
+        }
     })?;
     cfg.validate().map_err(|(field, message)| ConfigError::Value {
         file: located(origin, text, &field),
