@@ -2,7 +2,7 @@
 //! (→ Rayleigh α, β) → free vibration → folding → deployment. Each stage hands the next a
 //! converged state and pushes its converged steps to the recorder; nothing reaches back.
 
-use crate::config::{Axis, CaseConfig, LoadSpec, TransientSpec};
+use crate::config::{Axis, CaseConfig, FoldTarget, LoadSpec, RayleighSpec, TransientSpec};
 use crate::dynamics::{NewmarkParams, NodalLoad, Rayleigh};
 use crate::error::{Error, Result};
 use crate::law::ForceLaw;
@@ -223,22 +223,15 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
         let mass = free_masses(&dofs, &node_mass);
         let m = modes(&k, &mass, &dofs, &model)?;
         let r = &spec.rayleigh;
-        let (chosen, ratios) = match (r.alpha, r.beta) {
-            (Some(alpha), Some(beta)) => {
-                rayleigh = Rayleigh { alpha, beta };
-                (vec![], vec![])
-            }
-            _ => {
-                let [i, j] = match (r.modes, r.auto_modes) {
-                    (Some(modes), _) => modes,
-                    (None, Some(axis)) => auto_modes(&m, &mass, &dofs, axis),
-                    (None, None) => unreachable!("validated: modes or auto_modes"),
-                };
-                let ratios = r.ratios.expect("validated: ratios with modes");
-                let w = |k: usize| m.omega2[k - 1].sqrt();
-                rayleigh = Rayleigh::from_modes(w(i), w(j), ratios[0], ratios[1]);
-                (vec![i, j], ratios.to_vec())
-            }
+        let from_modes = |[i, j]: [usize; 2], ratios: [f64; 2]| {
+            let w = |k: usize| m.omega2[k - 1].sqrt();
+            (Rayleigh::from_modes(w(i), w(j), ratios[0], ratios[1]), vec![i, j], ratios.to_vec())
+        };
+        let (chosen, ratios);
+        (rayleigh, chosen, ratios) = match *r {
+            RayleighSpec::Given { alpha, beta } => (Rayleigh { alpha, beta }, vec![], vec![]),
+            RayleighSpec::Modes { modes, ratios } => from_modes(modes, ratios),
+            RayleighSpec::AutoModes { axis, ratios } => from_modes(auto_modes(&m, &mass, &dofs, axis), ratios),
         };
         let shapes = m.node_shapes(&model, &dofs);
         recorder
@@ -320,16 +313,16 @@ fn prescribed_dofs(model: &Model, x: &[Vector3<f64>], spec: &crate::config::Fold
     let mut dofs = Vec::new();
     for p in &spec.prescribe {
         let a = p.axis.index();
-        let base_level = if p.to_base {
+        let base_level = if p.target == FoldTarget::ToBase {
             let base = model.group("base")?;
             base.iter().map(|&n| x[n][a]).sum::<f64>() / base.len() as f64
         } else {
             0.0
         };
         for &n in model.group(&p.group)? {
-            let target = match p.displacement {
-                Some(d) => x[n][a] + d,
-                None => base_level,
+            let target = match p.target {
+                FoldTarget::Displacement(d) => x[n][a] + d,
+                FoldTarget::ToBase => base_level,
             };
             dofs.retain(|&(m, b, _, _)| !(m == n && b == a));
             dofs.push((n, a, x[n][a], target));

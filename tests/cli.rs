@@ -1,6 +1,7 @@
 //! The real binary on small sweeps: summaries, determinism across thread counts, resume,
 //! config errors, and a failing case among complete ones.
 
+use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
@@ -98,7 +99,10 @@ fn parallel_equals_serial() {
 }
 
 fn bad_config(text: &str) -> (Output, PathBuf) {
-    let dir = scratch(&format!("bad{}", text.len()));
+    // By content: tests run in parallel, and two bad texts may have the same length.
+    let mut hasher = std::hash::DefaultHasher::new();
+    text.hash(&mut hasher);
+    let dir = scratch(&format!("bad{:x}", hasher.finish()));
     let path = dir.join("bad.yaml");
     std::fs::write(&path, text).unwrap();
     let start = Instant::now();
@@ -162,6 +166,54 @@ fn bad_configs_fail_fast_with_location() {
 
     let (out, _) = bad_config(&good.replace("name: small", "name: small\nmodel: [unclosed"));
     assert!(String::from_utf8_lossy(&out.stderr).contains("line"));
+}
+
+/// `line N` of the first line of `text` containing `needle`, as the YAML parser says it.
+fn parser_line(text: &str, needle: &str) -> String {
+    format!(
+        "line {}",
+        text.lines().position(|l| l.contains(needle)).expect("needle in text") + 1
+    )
+}
+
+/// Exclusive choices (Rayleigh damping's keys, a fold target) are checked when parsing:
+/// a wrong combination names its section and the parser gives the line.
+#[test]
+fn conflicting_keys_are_named_at_their_line() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let rayleigh = "{ modes: [1, 6], ratios: [0.1, 0.1] }";
+    for (from, to, section, problem) in [
+        (rayleigh, "{ alpha: 0.5 }", "eigen.rayleigh", "`alpha` without `beta`"),
+        (
+            rayleigh,
+            "{ modes: [1, 6], auto_modes: z, ratios: [0.1, 0.1] }",
+            "eigen.rayleigh",
+            "`modes` and `auto_modes` both given",
+        ),
+        (rayleigh, "{ modes: [1, 6] }", "eigen.rayleigh", "`ratios` missing"),
+        (
+            rayleigh,
+            "{ alpha: 0.5, beta: 0.01, ratios: [0.1, 0.1] }",
+            "eigen.rayleigh",
+            "`alpha` and `beta` exclude",
+        ),
+        (
+            "displacement: -0.5",
+            "displacement: -0.5, to_base: true",
+            "folding.prescribe",
+            "`to_base: true` and `displacement` both given",
+        ),
+        ("displacement: -0.5", "to_base: false", "folding.prescribe", "give either"),
+    ] {
+        let text = good.replace(from, to);
+        let (out, path) = bad_config(&text);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.starts_with(&format!("error: {}: {}", path.display(), parser_line(&text, to)))
+                && err.contains(&format!("`{section}`: {problem}")),
+            "{err}"
+        );
+    }
 }
 
 /// One case cannot converge (one Newton iteration, no step cutting); the others complete

@@ -111,44 +111,33 @@ impl CaseConfig {
             }
         }
         let dof_count = 3 * model.node_count() - model.support_count();
+        // Which keys are given is settled by the type; what remains are the ranges.
         if let Some(e) = &self.eigen {
-            let r = &e.rayleigh;
-            let given = r.alpha.is_some() || r.beta.is_some();
-            let from_modes = r.modes.is_some() || r.auto_modes.is_some();
-            if given == from_modes || (given && (r.alpha.is_none() || r.beta.is_none())) || (r.modes.is_some() && r.auto_modes.is_some()) {
-                return Err((
-                    "eigen.rayleigh".into(),
-                    "give `alpha` and `beta`, or `modes` (or `auto_modes`) with `ratios`".into(),
-                ));
-            }
-            if let Some(modes) = r.modes {
-                for (k, m) in modes.iter().enumerate() {
-                    if *m < 1 || *m > dof_count {
-                        return Err((
-                            format!("eigen.rayleigh.modes[{k}]"),
-                            format!("is {m}; must lie in 1..={dof_count} (the model has {dof_count} DOF)"),
-                        ));
+            let ratios = match e.rayleigh {
+                RayleighSpec::Given { alpha, beta } => {
+                    for (f, v) in [("eigen.rayleigh.alpha", alpha), ("eigen.rayleigh.beta", beta)] {
+                        within(f, v, -1e-300, f64::INFINITY, "[0, ∞)")?;
                     }
+                    None
                 }
-                if modes[0] == modes[1] {
-                    return Err(("eigen.rayleigh.modes".into(), "the two modes must differ".into()));
+                RayleighSpec::Modes { modes, ratios } => {
+                    for (k, m) in modes.iter().enumerate() {
+                        if *m < 1 || *m > dof_count {
+                            return Err((
+                                format!("eigen.rayleigh.modes[{k}]"),
+                                format!("is {m}; must lie in 1..={dof_count} (the model has {dof_count} DOF)"),
+                            ));
+                        }
+                    }
+                    if modes[0] == modes[1] {
+                        return Err(("eigen.rayleigh.modes".into(), "the two modes must differ".into()));
+                    }
+                    Some(ratios)
                 }
-            }
-            if from_modes {
-                let Some(ratios) = r.ratios else {
-                    return Err((
-                        "eigen.rayleigh.ratios".into(),
-                        "needed with `modes`: the damping ratio of each mode".into(),
-                    ));
-                };
-                for (k, z) in ratios.iter().enumerate() {
-                    within(&format!("eigen.rayleigh.ratios[{k}]"), *z, -1e-300, 1.0, "[0, 1)")?;
-                }
-            }
-            for (f, v) in [("eigen.rayleigh.alpha", r.alpha), ("eigen.rayleigh.beta", r.beta)] {
-                if let Some(v) = v {
-                    within(f, v, -1e-300, f64::INFINITY, "[0, ∞)")?;
-                }
+                RayleighSpec::AutoModes { ratios, .. } => Some(ratios),
+            };
+            for (k, z) in ratios.iter().flatten().enumerate() {
+                within(&format!("eigen.rayleigh.ratios[{k}]"), *z, -1e-300, 1.0, "[0, 1)")?;
             }
         }
         for (name, t) in [("free_vibration", &self.free_vibration), ("deployment", &self.deployment)] {
@@ -175,13 +164,7 @@ impl CaseConfig {
                 model
                     .group(&p.group)
                     .map_err(|e| (format!("folding.prescribe[{k}].group"), e.to_string()))?;
-                if p.to_base == p.displacement.is_some() {
-                    return Err((
-                        format!("folding.prescribe[{k}]"),
-                        "give either `to_base: true` or `displacement`".into(),
-                    ));
-                }
-                if p.to_base {
+                if p.target == FoldTarget::ToBase {
                     model
                         .group("base")
                         .map_err(|e| (format!("folding.prescribe[{k}].to_base"), e.to_string()))?;
