@@ -176,8 +176,78 @@ fn parser_line(text: &str, needle: &str) -> String {
     )
 }
 
+#[test]
+fn every_bad_value_is_reported_at_its_line() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good
+        .replace("modes: [1, 6]", "modes: [1, 60]")
+        .replace("duration: 0.1\n", "duration: 0.1\n  dt: -0.001\n")
+        .replace("steps: 4", "steps: 0");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 3, "one line per error:\n{err}");
+    // In file order, each `error: file:line: `field`: message` once.
+    for (line, (needle, field)) in lines.iter().zip([
+        ("modes: [1, 60]", "eigen.rayleigh.modes[1]"),
+        ("steps: 0", "folding.steps"),
+        ("dt: -0.001", "deployment.dt"),
+    ]) {
+        assert!(
+            line.starts_with(&format!("error: {}: `{field}`: ", at(&path, &text, needle))),
+            "{err}"
+        );
+    }
+
+    // Bad values set by two axes: each once, at its own sweep value, with the first case it fails.
+    let text = good
+        .replace("{ substitution.cable: nylon }", "{ substitution.cable: nylon, folding.steps: 0 }")
+        .replace("[0.1, 0.1] } }", "[1.5, 0.1] } }");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 2, "each bad sweep value once:\n{err}");
+    assert!(
+        lines[0].contains(&at(&path, &text, "[1.5, 0.1]")) && lines[0].contains("ratios[0]"),
+        "{err}"
+    );
+    assert!(
+        lines[1].contains(&at(&path, &text, "folding.steps: 0")) && lines[1].contains("cable=nylon, zeta=0.05"),
+        "{err}"
+    );
+}
+
+/// A model that does not build skips the checks that need it (here the fold group), not the others.
+#[test]
+fn a_broken_model_skips_only_the_checks_that_need_it() {
+    let text = "name: m
+model:
+  nodes:
+    - { id: a, xyz: [0.0, 0.0, 0.0], fix: [x, y, z] }
+    - { id: b, xyz: [1.0, 0.0, 0.0] }
+  members:
+    - { id: c1, nodes: [a, q], kind: cable, rest_length: 1.0 }
+substitution: { strut: aluminium, cable: rubber }
+folding:
+  steps: 0
+  prescribe: [{ group: tip, axis: z, displacement: 0.1 }]
+";
+    let (out, path) = bad_config(text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 2, "{err}");
+    assert!(
+        lines[0].contains(&at(&path, text, "model:")) && lines[0].contains("`model`") && lines[0].contains("q"),
+        "{err}"
+    );
+    assert!(
+        lines[1].contains(&at(&path, text, "steps: 0")) && lines[1].contains("folding.steps"),
+        "{err}"
+    );
+}
+
 /// Exclusive choices (Rayleigh damping's keys, a fold target) are checked when parsing:
-/// a wrong combination names its section and the parser gives the line.
+/// a wrong combination names its section and the line, in the file or in a sweep value.
 #[test]
 fn conflicting_keys_are_named_at_their_line() {
     let good = std::fs::read_to_string(SWEEP).unwrap();
@@ -211,6 +281,23 @@ fn conflicting_keys_are_named_at_their_line() {
         assert!(
             err.starts_with(&format!("error: {}: {}", path.display(), parser_line(&text, to)))
                 && err.contains(&format!("`{section}`: {problem}")),
+            "{err}"
+        );
+    }
+
+    // Set by a sweep value: that value's line.
+    for (to, section) in [
+        ("{ eigen.rayleigh.auto_modes: z }", "eigen.rayleigh"),
+        ("{ folding.prescribe: [{ group: top, axis: z }] }", "folding.prescribe"),
+    ] {
+        let text = good.replace("{ eigen.rayleigh.ratios: [0.05, 0.05] }", to);
+        let (out, path) = bad_config(&text);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.starts_with(&format!("error: {}: `sweep.axes[1].values[0].set", at(&path, &text, to)))
+                && err.contains(&format!("`{section}`: "))
+                && err.contains("zeta=0.05")
+                && err.lines().count() == 1,
             "{err}"
         );
     }
