@@ -4,6 +4,7 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use tsim::config::ConfigError;
 use tsim::run::{default_jobs, load, run, RunOptions};
 
 #[derive(Parser)]
@@ -41,6 +42,14 @@ enum Command {
     Check { config: PathBuf },
 }
 
+/// One `error: ` line per bad value (a syntax error's message runs on with its snippet).
+fn report(e: &ConfigError) {
+    match e {
+        ConfigError::Values(errors) => errors.iter().for_each(|v| eprintln!("error: {v}")),
+        e => eprintln!("error: {e}"),
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
@@ -53,7 +62,7 @@ fn main() -> ExitCode {
                 ExitCode::SUCCESS
             }
             Err(e) => {
-                eprintln!("error: {e}");
+                report(&e);
                 ExitCode::from(2)
             }
         },
@@ -67,7 +76,7 @@ fn main() -> ExitCode {
             let (name, cases) = match load(&config) {
                 Ok(x) => x,
                 Err(e) => {
-                    eprintln!("error: {e}");
+                    report(&e);
                     return ExitCode::from(2);
                 }
             };

@@ -1,6 +1,7 @@
 //! The real binary on small sweeps: summaries, determinism across thread counts, resume,
 //! config errors, and a failing case among complete ones.
 
+use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
@@ -98,7 +99,10 @@ fn parallel_equals_serial() {
 }
 
 fn bad_config(text: &str) -> (Output, PathBuf) {
-    let dir = scratch(&format!("bad{}", text.len()));
+    // By content: tests run in parallel, and two bad texts may have the same length.
+    let mut hasher = std::hash::DefaultHasher::new();
+    text.hash(&mut hasher);
+    let dir = scratch(&format!("bad{:x}", hasher.finish()));
     let path = dir.join("bad.yaml");
     std::fs::write(&path, text).unwrap();
     let start = Instant::now();
@@ -162,6 +166,141 @@ fn bad_configs_fail_fast_with_location() {
 
     let (out, _) = bad_config(&good.replace("name: small", "name: small\nmodel: [unclosed"));
     assert!(String::from_utf8_lossy(&out.stderr).contains("line"));
+}
+
+/// `line N` of the first line of `text` containing `needle`, as the YAML parser says it.
+fn parser_line(text: &str, needle: &str) -> String {
+    format!(
+        "line {}",
+        text.lines().position(|l| l.contains(needle)).expect("needle in text") + 1
+    )
+}
+
+#[test]
+fn every_bad_value_is_reported_at_its_line() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good
+        .replace("modes: [1, 6]", "modes: [1, 60]")
+        .replace("duration: 0.1\n", "duration: 0.1\n  dt: -0.001\n")
+        .replace("steps: 4", "steps: 0");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 3, "one line per error:\n{err}");
+    // In file order, each `error: file:line: `field`: message` once.
+    for (line, (needle, field)) in lines.iter().zip([
+        ("modes: [1, 60]", "eigen.rayleigh.modes[1]"),
+        ("steps: 0", "folding.steps"),
+        ("dt: -0.001", "deployment.dt"),
+    ]) {
+        assert!(
+            line.starts_with(&format!("error: {}: `{field}`: ", at(&path, &text, needle))),
+            "{err}"
+        );
+    }
+
+    // Bad values set by two axes: each once, at its own sweep value, with the first case it fails.
+    let text = good
+        .replace("{ substitution.cable: nylon }", "{ substitution.cable: nylon, folding.steps: 0 }")
+        .replace("[0.1, 0.1] } }", "[1.5, 0.1] } }");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 2, "each bad sweep value once:\n{err}");
+    assert!(
+        lines[0].contains(&at(&path, &text, "[1.5, 0.1]")) && lines[0].contains("ratios[0]"),
+        "{err}"
+    );
+    assert!(
+        lines[1].contains(&at(&path, &text, "folding.steps: 0")) && lines[1].contains("cable=nylon, zeta=0.05"),
+        "{err}"
+    );
+}
+
+/// A model that does not build skips the checks that need it (here the fold group), not the others.
+#[test]
+fn a_broken_model_skips_only_the_checks_that_need_it() {
+    let text = "name: m
+model:
+  nodes:
+    - { id: a, xyz: [0.0, 0.0, 0.0], fix: [x, y, z] }
+    - { id: b, xyz: [1.0, 0.0, 0.0] }
+  members:
+    - { id: c1, nodes: [a, q], kind: cable, rest_length: 1.0 }
+substitution: { strut: aluminium, cable: rubber }
+folding:
+  steps: 0
+  prescribe: [{ group: tip, axis: z, displacement: 0.1 }]
+";
+    let (out, path) = bad_config(text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 2, "{err}");
+    assert!(
+        lines[0].contains(&at(&path, text, "model:")) && lines[0].contains("`model`") && lines[0].contains("q"),
+        "{err}"
+    );
+    assert!(
+        lines[1].contains(&at(&path, text, "steps: 0")) && lines[1].contains("folding.steps"),
+        "{err}"
+    );
+}
+
+/// Exclusive choices (Rayleigh damping's keys, a fold target) are checked when parsing:
+/// a wrong combination names its section and the line, in the file or in a sweep value.
+#[test]
+fn conflicting_keys_are_named_at_their_line() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let rayleigh = "{ modes: [1, 6], ratios: [0.1, 0.1] }";
+    for (from, to, section, problem) in [
+        (rayleigh, "{ alpha: 0.5 }", "eigen.rayleigh", "`alpha` without `beta`"),
+        (
+            rayleigh,
+            "{ modes: [1, 6], auto_modes: z, ratios: [0.1, 0.1] }",
+            "eigen.rayleigh",
+            "`modes` and `auto_modes` both given",
+        ),
+        (rayleigh, "{ modes: [1, 6] }", "eigen.rayleigh", "`ratios` missing"),
+        (
+            rayleigh,
+            "{ alpha: 0.5, beta: 0.01, ratios: [0.1, 0.1] }",
+            "eigen.rayleigh",
+            "`alpha` and `beta` exclude",
+        ),
+        (
+            "displacement: -0.5",
+            "displacement: -0.5, to_base: true",
+            "folding.prescribe",
+            "`to_base: true` and `displacement` both given",
+        ),
+        ("displacement: -0.5", "to_base: false", "folding.prescribe", "give either"),
+    ] {
+        let text = good.replace(from, to);
+        let (out, path) = bad_config(&text);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.starts_with(&format!("error: {}: {}", path.display(), parser_line(&text, to)))
+                && err.contains(&format!("`{section}`: {problem}")),
+            "{err}"
+        );
+    }
+
+    // Set by a sweep value: that value's line.
+    for (to, section) in [
+        ("{ eigen.rayleigh.auto_modes: z }", "eigen.rayleigh"),
+        ("{ folding.prescribe: [{ group: top, axis: z }] }", "folding.prescribe"),
+    ] {
+        let text = good.replace("{ eigen.rayleigh.ratios: [0.05, 0.05] }", to);
+        let (out, path) = bad_config(&text);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.starts_with(&format!("error: {}: `sweep.axes[1].values[0].set", at(&path, &text, to)))
+                && err.contains(&format!("`{section}`: "))
+                && err.contains("zeta=0.05")
+                && err.lines().count() == 1,
+            "{err}"
+        );
+    }
 }
 
 /// One case cannot converge (one Newton iteration, no step cutting); the others complete

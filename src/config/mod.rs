@@ -1,6 +1,7 @@
 //! The YAML case configuration: schema, defaults, the material library and validation.
 //! Every key is documented in `docs/config.md`; unknown keys are errors (with line and
-//! column from the YAML parser), out-of-range values name the field and the range.
+//! column from the YAML parser, which stops at the first); out-of-range values name the
+//! field and the range, and all of them are reported, each at its line.
 
 mod build;
 mod locate;
@@ -11,31 +12,45 @@ mod validate;
 
 pub use materials::{library, LawSpec, MaterialSpec};
 pub use schema::*;
-pub use validate::ConfigError;
+pub use validate::{ConfigError, FieldError, ValueError};
 
 /// Line of a dotted field path in the YAML text (see `locate`).
 pub fn locate_line(text: &str, field: &str) -> Option<usize> {
     locate::line_of(text, field)
 }
 
-/// `file:line` for a field when its line can be found, else `file`.
-pub fn located(origin: &str, text: &str, field: &str) -> String {
-    match locate_line(text, field) {
-        Some(line) => format!("{origin}:{line}"),
-        None => origin.to_string(),
-    }
+/// Parses one case configuration without the value checks of `validate`. `origin` names
+/// the file in errors.
+pub fn parse(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
+    serde_saphyr::from_str(text).map_err(|e| {
+        let message = e.to_string();
+        ConfigError::Syntax {
+            file: origin.to_string(),
+            // The CLI adds its own `error: `.
+            message: message.strip_prefix("error: ").unwrap_or(&message).to_string(),
+        }
+    })
 }
 
-/// Parses and validates one case configuration. `origin` names the file in errors.
+/// Parses and validates one case configuration, reporting every bad value.
 pub fn parse_case(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
-    let cfg: CaseConfig = serde_saphyr::from_str(text).map_err(|e| ConfigError::Syntax {
-        file: origin.to_string(),
-        message: e.to_string(),
-    })?;
-    cfg.validate().map_err(|(field, message)| ConfigError::Value {
-        file: located(origin, text, &field),
-        field,
-        message,
-    })?;
+    let cfg = parse(text, origin)?;
+    cfg.validate()
+        .map_err(|errors| ConfigError::Values(locate_errors(origin, text, errors)))?;
     Ok(cfg)
+}
+
+/// `errors` of the file `origin`, each at its field's line, in file order.
+pub fn locate_errors(origin: &str, text: &str, errors: Vec<FieldError>) -> Vec<ValueError> {
+    let mut located: Vec<ValueError> = errors
+        .into_iter()
+        .map(|e| ValueError {
+            file: origin.to_string(),
+            line: locate_line(text, &e.field),
+            field: e.field,
+            message: e.message,
+        })
+        .collect();
+    located.sort_by_key(|e| e.line);
+    located
 }

@@ -2,8 +2,8 @@
 //! the stages. Every lookup by name (materials, node groups) happens here, on a config
 //! that `validate` has accepted.
 
-use super::schema::{CaseConfig, LoadSpec, TransientSpec};
-use crate::dynamics::{NewmarkParams, NodalLoad, Rayleigh};
+use super::schema::{CaseConfig, FoldTarget, LoadSpec, RayleighSpec, TransientSpec};
+use crate::dynamics::{NodalLoad, Rayleigh};
 use crate::error::Result;
 use crate::model::{MemberKind, Model};
 use crate::record::Stage;
@@ -46,15 +46,13 @@ impl CaseConfig {
     }
 
     pub fn eigen_stage(&self) -> Option<Eigen> {
-        let r = &self.eigen.as_ref()?.rayleigh;
-        let damping = match (r.alpha, r.beta, r.modes, r.auto_modes, r.ratios) {
-            (Some(alpha), Some(beta), ..) => DampingFrom::Given(Rayleigh { alpha, beta }),
-            (_, _, Some(modes), _, Some(ratios)) => DampingFrom::Modes { modes, ratios },
-            (_, _, None, Some(axis), Some(ratios)) => DampingFrom::AutoModes {
+        let damping = match self.eigen.as_ref()?.rayleigh {
+            RayleighSpec::Given { alpha, beta } => DampingFrom::Given(Rayleigh { alpha, beta }),
+            RayleighSpec::Modes { modes, ratios } => DampingFrom::Modes { modes, ratios },
+            RayleighSpec::AutoModes { axis, ratios } => DampingFrom::AutoModes {
                 axis: axis.index(),
                 ratios,
             },
-            _ => unreachable!("validated: alpha and beta, or modes or auto_modes with ratios"),
         };
         Some(Eigen { damping })
     }
@@ -63,12 +61,7 @@ impl CaseConfig {
     pub fn transient(&self, spec: &TransientSpec, stage: Stage, model: &Model) -> Result<Transient> {
         Ok(Transient {
             stage,
-            params: NewmarkParams {
-                beta: spec.newmark_beta,
-                gamma: spec.newmark_gamma,
-                dt: spec.dt,
-                max_cuts: spec.max_cuts,
-            },
+            params: spec.newmark(),
             duration: spec.duration,
             damped: spec.damped,
             tangent: spec.damping_tangent,
@@ -82,9 +75,9 @@ impl CaseConfig {
             .prescribe
             .iter()
             .map(|p| {
-                let target = match p.displacement {
-                    Some(d) => Target::Displacement(d),
-                    None => Target::LevelOf(model.group("base")?.to_vec()),
+                let target = match p.target {
+                    FoldTarget::Displacement(d) => Target::Displacement(d),
+                    FoldTarget::ToBase => Target::LevelOf(model.group("base")?.to_vec()),
                 };
                 Ok(Prescription {
                     nodes: model.group(&p.group)?.to_vec(),

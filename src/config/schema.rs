@@ -1,5 +1,5 @@
 use super::materials::MaterialSpec;
-use crate::dynamics::{DampingTangent, LoadProfile};
+use crate::dynamics::{DampingTangent, LoadProfile, NewmarkParams};
 use crate::model::generate::TowerSpec;
 use crate::model::MemberKind;
 use crate::solve::NewtonSettings;
@@ -138,29 +138,119 @@ impl MassReading {
     }
 }
 
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EigenSpec {
-    #[serde(default)]
     pub rayleigh: RayleighSpec,
 }
 
 /// Rayleigh damping: `alpha` and `beta` given, or from two modes (`modes`, 1-based, or
 /// `auto_modes`: the two modes with the largest effective modal mass along that axis)
 /// and their damping `ratios`.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "RayleighRaw", into = "RayleighRaw")]
+pub enum RayleighSpec {
+    Given { alpha: f64, beta: f64 },
+    Modes { modes: [usize; 2], ratios: [f64; 2] },
+    AutoModes { axis: Axis, ratios: [f64; 2] },
+}
+
+/// The YAML form of [`RayleighSpec`]: every key, absent ones written as `null`, so that
+/// `case.yaml` (compared on resume) reads as it did before the enum.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct RayleighSpec {
+struct RayleighRaw {
     #[serde(default)]
-    pub alpha: Option<f64>,
+    alpha: Option<f64>,
     #[serde(default)]
-    pub beta: Option<f64>,
+    beta: Option<f64>,
     #[serde(default)]
-    pub modes: Option<[usize; 2]>,
+    modes: Option<[usize; 2]>,
     #[serde(default)]
-    pub auto_modes: Option<Axis>,
+    auto_modes: Option<Axis>,
     #[serde(default)]
-    pub ratios: Option<[f64; 2]>,
+    ratios: Option<[f64; 2]>,
+}
+
+impl TryFrom<RayleighRaw> for RayleighSpec {
+    type Error = String;
+
+    /// The parser reports the line of the section; the message names it, since a sweep
+    /// value converted without the parser has no line of its own.
+    fn try_from(r: RayleighRaw) -> Result<Self, String> {
+        let problem = match r {
+            RayleighRaw {
+                alpha: Some(alpha),
+                beta: Some(beta),
+                modes: None,
+                auto_modes: None,
+                ratios: None,
+            } => return Ok(RayleighSpec::Given { alpha, beta }),
+            RayleighRaw {
+                alpha: None,
+                beta: None,
+                modes: Some(modes),
+                auto_modes: None,
+                ratios: Some(ratios),
+            } => return Ok(RayleighSpec::Modes { modes, ratios }),
+            RayleighRaw {
+                alpha: None,
+                beta: None,
+                modes: None,
+                auto_modes: Some(axis),
+                ratios: Some(ratios),
+            } => return Ok(RayleighSpec::AutoModes { axis, ratios }),
+            RayleighRaw {
+                modes: Some(_),
+                auto_modes: Some(_),
+                ..
+            } => "`modes` and `auto_modes` both given",
+            RayleighRaw {
+                alpha: Some(_),
+                beta: None,
+                ..
+            } => "`alpha` without `beta`",
+            RayleighRaw {
+                alpha: None,
+                beta: Some(_),
+                ..
+            } => "`beta` without `alpha`",
+            RayleighRaw { alpha: Some(_), .. } => "`alpha` and `beta` exclude `modes`, `auto_modes` and `ratios`",
+            RayleighRaw {
+                ratios: None,
+                modes: None,
+                auto_modes: None,
+                ..
+            } => "nothing given",
+            RayleighRaw { ratios: None, .. } => "`ratios` missing (the damping ratio of each mode)",
+            RayleighRaw { .. } => "`ratios` without `modes` or `auto_modes`",
+        };
+        Err(format!(
+            "`eigen.rayleigh`: {problem}; give `alpha` and `beta`, or `modes` (or `auto_modes`) with `ratios`"
+        ))
+    }
+}
+
+impl From<RayleighSpec> for RayleighRaw {
+    fn from(r: RayleighSpec) -> Self {
+        match r {
+            RayleighSpec::Given { alpha, beta } => RayleighRaw {
+                alpha: Some(alpha),
+                beta: Some(beta),
+                ..Default::default()
+            },
+            RayleighSpec::Modes { modes, ratios } => RayleighRaw {
+                modes: Some(modes),
+                ratios: Some(ratios),
+                ..Default::default()
+            },
+            RayleighSpec::AutoModes { axis, ratios } => RayleighRaw {
+                auto_modes: Some(axis),
+                ratios: Some(ratios),
+                ..Default::default()
+            },
+        }
+    }
 }
 
 /// A load on node groups.
@@ -180,7 +270,7 @@ fn step_profile() -> LoadProfile {
     LoadProfile::Step
 }
 
-/// Free vibration or deployment.
+/// Free vibration or deployment. The Newmark keys default to [`NewmarkParams::default`].
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TransientSpec {
@@ -189,9 +279,9 @@ pub struct TransientSpec {
     pub dt: f64,
     /// [s]
     pub duration: f64,
-    #[serde(default = "quarter")]
+    #[serde(default = "default_beta")]
     pub newmark_beta: f64,
-    #[serde(default = "half")]
+    #[serde(default = "default_gamma")]
     pub newmark_gamma: f64,
     /// Rayleigh damping on (from `eigen.rayleigh`); free vibration is undamped by default.
     #[serde(default)]
@@ -201,18 +291,33 @@ pub struct TransientSpec {
     #[serde(default)]
     pub load: Option<LoadSpec>,
     /// Halvings of a step whose Newton solve fails.
-    #[serde(default = "six")]
+    #[serde(default = "default_cuts")]
     pub max_cuts: u32,
 }
 
+impl TransientSpec {
+    /// The integrator's parameters.
+    pub fn newmark(&self) -> NewmarkParams {
+        NewmarkParams {
+            beta: self.newmark_beta,
+            gamma: self.newmark_gamma,
+            dt: self.dt,
+            max_cuts: self.max_cuts,
+        }
+    }
+}
+
 fn default_dt() -> f64 {
-    0.001
+    NewmarkParams::default().dt
 }
-fn quarter() -> f64 {
-    0.25
+fn default_beta() -> f64 {
+    NewmarkParams::default().beta
 }
-fn half() -> f64 {
-    0.5
+fn default_gamma() -> f64 {
+    NewmarkParams::default().gamma
+}
+fn default_cuts() -> u32 {
+    NewmarkParams::default().max_cuts
 }
 fn six() -> u32 {
     6
@@ -232,17 +337,67 @@ pub struct FoldSpec {
     pub prescribe: Vec<PrescribeSpec>,
 }
 
-/// One group's prescribed direction: to the base plane (`to_base: true`, each node to
-/// the mean coordinate of the `base` group along `axis`) or by `displacement` [m].
+/// One group's prescribed direction, moved to `target`.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "PrescribeRaw", into = "PrescribeRaw")]
 pub struct PrescribeSpec {
     pub group: String,
     pub axis: Axis,
+    pub target: FoldTarget,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FoldTarget {
+    /// Each node to the mean coordinate of the `base` group along `axis`.
+    ToBase,
+    /// By this much [m].
+    Displacement(f64),
+}
+
+/// The YAML form of [`PrescribeSpec`] (`to_base: true` or `displacement`), kept with
+/// every key so that `case.yaml` reads as it did before the enum.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PrescribeRaw {
+    group: String,
+    axis: Axis,
     #[serde(default)]
-    pub to_base: bool,
+    to_base: bool,
     #[serde(default)]
-    pub displacement: Option<f64>,
+    displacement: Option<f64>,
+}
+
+impl TryFrom<PrescribeRaw> for PrescribeSpec {
+    type Error = String;
+
+    fn try_from(p: PrescribeRaw) -> Result<Self, String> {
+        let target = match (p.to_base, p.displacement) {
+            (true, None) => FoldTarget::ToBase,
+            (false, Some(d)) => FoldTarget::Displacement(d),
+            (true, Some(_)) => return Err("`folding.prescribe`: `to_base: true` and `displacement` both given; give one".into()),
+            (false, None) => return Err("`folding.prescribe`: give either `to_base: true` or `displacement`".into()),
+        };
+        Ok(PrescribeSpec {
+            group: p.group,
+            axis: p.axis,
+            target,
+        })
+    }
+}
+
+impl From<PrescribeSpec> for PrescribeRaw {
+    fn from(p: PrescribeSpec) -> Self {
+        let (to_base, displacement) = match p.target {
+            FoldTarget::ToBase => (true, None),
+            FoldTarget::Displacement(d) => (false, Some(d)),
+        };
+        PrescribeRaw {
+            group: p.group,
+            axis: p.axis,
+            to_base,
+            displacement,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -302,4 +457,61 @@ pub struct SweepValue {
     /// Label in case ids (letters, digits, `-`, `.`).
     pub label: String,
     pub set: BTreeMap<String, serde_json::Value>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{EigenSpec, FoldSpec, FoldTarget, RayleighSpec};
+
+    /// `case.yaml` is compared byte for byte on resume: the enums must write what the
+    /// structs of five and four keys wrote (these texts are the structs' output).
+    #[test]
+    fn exclusive_choices_serialize_as_before() {
+        for (yaml, spec, written) in [
+            (
+                "rayleigh: { alpha: 1.612, beta: 0.0052 }\n",
+                RayleighSpec::Given {
+                    alpha: 1.612,
+                    beta: 0.0052,
+                },
+                "rayleigh:\n  alpha: 1.612\n  beta: 0.0052\n  modes: null\n  auto_modes: null\n  ratios: null\n",
+            ),
+            (
+                "rayleigh: { modes: [3, 20], ratios: [0.2, 0.2] }\n",
+                RayleighSpec::Modes {
+                    modes: [3, 20],
+                    ratios: [0.2, 0.2],
+                },
+                "rayleigh:\n  alpha: null\n  beta: null\n  modes:\n  - 3\n  - 20\n  auto_modes: null\n  ratios:\n  - 0.2\n  - 0.2\n",
+            ),
+            (
+                "rayleigh: { auto_modes: z, ratios: [0.05, 0.1] }\n",
+                RayleighSpec::AutoModes {
+                    axis: super::Axis::Z,
+                    ratios: [0.05, 0.1],
+                },
+                "rayleigh:\n  alpha: null\n  beta: null\n  modes: null\n  auto_modes: z\n  ratios:\n  - 0.05\n  - 0.1\n",
+            ),
+        ] {
+            let e: EigenSpec = serde_saphyr::from_str(yaml).unwrap();
+            assert_eq!(e.rayleigh, spec);
+            assert_eq!(serde_saphyr::to_string(&e).unwrap(), written);
+        }
+
+        let f: FoldSpec = serde_saphyr::from_str(
+            "prescribe: [{group: top, axis: z, to_base: true}, {group: middle, axis: x, displacement: -0.5}, \
+             {group: g, axis: y, to_base: false, displacement: 0.25}]\n",
+        )
+        .unwrap();
+        let targets: Vec<FoldTarget> = f.prescribe.iter().map(|p| p.target).collect();
+        assert_eq!(
+            targets,
+            [FoldTarget::ToBase, FoldTarget::Displacement(-0.5), FoldTarget::Displacement(0.25)]
+        );
+        assert_eq!(
+            serde_saphyr::to_string(&f).unwrap(),
+            "steps: 10\nmax_cuts: 6\nprescribe:\n- group: top\n  axis: z\n  to_base: true\n  displacement: null\n- group: middle\n  \
+             axis: x\n  to_base: false\n  displacement: -0.5\n- group: g\n  axis: \"y\"\n  to_base: false\n  displacement: 0.25\n"
+        );
+    }
 }

@@ -1,203 +1,266 @@
 use super::schema::*;
+use super::{LawSpec, MaterialSpec};
+use crate::model::generate::TowerSpec;
+use crate::model::Model;
 
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
-    /// YAML syntax, an unknown key or a wrong type: the parser's message has line and column.
+    /// YAML syntax, an unknown key, a wrong type or conflicting keys: the parser stops at
+    /// the first, and its message has line and column.
     #[error("{file}: {message}")]
     Syntax { file: String, message: String },
-    #[error("{file}: `{field}`: {message}")]
-    Value { file: String, field: String, message: String },
+    /// Every bad value found, one per line.
+    #[error("{}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n"))]
+    Values(Vec<ValueError>),
     #[error("{file}: {message}")]
     Io { file: String, message: String },
 }
 
-type Check = Result<(), (String, String)>;
-
-fn positive(field: &str, v: f64) -> Check {
-    if v > 0.0 && v.is_finite() {
-        Ok(())
-    } else {
-        Err((field.into(), format!("is {v}; must be a finite number > 0")))
-    }
+/// A bad value in a file: `line` is the field's (or the sweep value's that set it) when
+/// it can be found.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{file}{}: `{field}`: {message}", line.map(|l| format!(":{l}")).unwrap_or_default())]
+pub struct ValueError {
+    pub file: String,
+    pub line: Option<usize>,
+    pub field: String,
+    pub message: String,
 }
 
-fn within(field: &str, v: f64, lo: f64, hi: f64, range: &str) -> Check {
-    if v > lo && v < hi {
-        Ok(())
-    } else {
-        Err((field.into(), format!("is {v}; must lie in {range}")))
+/// A value that the types cannot rule out: its dotted field path and what is wrong.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FieldError {
+    pub field: String,
+    pub message: String,
+}
+
+/// Collects problems so that one run of the checks reports all of them.
+#[derive(Default)]
+struct Problems(Vec<FieldError>);
+
+impl Problems {
+    fn add(&mut self, field: impl Into<String>, message: impl Into<String>) {
+        let e = FieldError {
+            field: field.into(),
+            message: message.into(),
+        };
+        // Strut and cable may name the same material: report its problems once.
+        if !self.0.contains(&e) {
+            self.0.push(e);
+        }
+    }
+
+    fn positive(&mut self, field: &str, v: f64) {
+        if !(v > 0.0 && v.is_finite()) {
+            self.add(field, format!("is {v}; must be a finite number > 0"));
+        }
+    }
+
+    fn within(&mut self, field: &str, v: f64, lo: f64, hi: f64, range: &str) {
+        if !(v > lo && v < hi) {
+            self.add(field, format!("is {v}; must lie in {range}"));
+        }
     }
 }
 
 impl CaseConfig {
-    /// Range checks that the types cannot express; the model itself is checked when built.
-    pub fn validate(&self) -> Check {
-        let model = self.model.build().map_err(|e| ("model".to_string(), e.to_string()))?;
+    /// Range and cross-section checks that the types cannot express, all of them: a model
+    /// that does not build skips only the checks that need it.
+    pub fn validate(&self) -> Result<(), Vec<FieldError>> {
+        let mut p = Problems::default();
+        let model = self.check_model(&mut p);
+        self.check_materials(&mut p);
+        self.check_shape(&mut p);
+        if let Some(e) = &self.eigen {
+            check_rayleigh(&e.rayleigh, model.as_ref(), &mut p);
+        }
+        for (name, t) in [("free_vibration", &self.free_vibration), ("deployment", &self.deployment)] {
+            if let Some(t) = t {
+                check_transient(name, t, self.eigen.is_some(), model.as_ref(), &mut p);
+            }
+        }
+        if let Some(f) = &self.folding {
+            check_folding(f, model.as_ref(), &mut p);
+        }
+        if self.outputs.every == 0 {
+            p.add("outputs.every", "is 0; must be ≥ 1");
+        }
+        if p.0.is_empty() {
+            Ok(())
+        } else {
+            Err(p.0)
+        }
+    }
+
+    /// Built-in materials with this config's additions.
+    pub fn material_library(&self) -> std::collections::BTreeMap<String, MaterialSpec> {
+        let mut lib = super::library();
+        lib.extend(self.materials.clone());
+        lib
+    }
+
+    /// Checks the model section; returns the model if it builds.
+    fn check_model(&self, p: &mut Problems) -> Option<Model> {
         if self.model.tower.is_some() && !self.model.nodes.is_empty() {
-            return Err(("model".into(), "give either `tower` or `nodes`/`members`, not both".into()));
+            p.add("model", "give either `tower` or `nodes`/`members`, not both");
         }
         if let Some(t) = &self.model.tower {
-            if t.struts < 3 || t.stages < 1 {
-                return Err((
-                    "model.tower".into(),
-                    format!("struts = {}, stages = {}; need struts ≥ 3 and stages ≥ 1", t.struts, t.stages),
-                ));
-            }
-            positive("model.tower.radius", t.radius)?;
-            positive("model.tower.strut_length", t.strut_length)?;
-            within("model.tower.overlap", t.overlap, -1e-300, 1.0, "[0, 1)")?;
-            if t.stage_height().is_nan() {
-                return Err((
-                    "model.tower.radius".into(),
-                    format!("{} m is too large for struts of {} m", t.radius, t.strut_length),
-                ));
+            let before = p.0.len();
+            check_tower(t, p);
+            if p.0.len() > before {
+                // Building would only restate these.
+                return None;
             }
         }
+        self.model.build().map_err(|e| p.add("model", e.to_string())).ok()
+    }
+
+    fn check_materials(&self, p: &mut Problems) {
         let lib = self.material_library();
         for (field, name) in [
             ("substitution.strut", &self.substitution.strut),
             ("substitution.cable", &self.substitution.cable),
         ] {
-            let Some(mat) = lib.get(name) else {
-                return Err((
-                    field.into(),
+            match lib.get(name) {
+                Some(mat) => check_material(name, mat, p),
+                None => p.add(
+                    field,
                     format!(
                         "unknown material `{name}`; known: {}",
                         lib.keys().cloned().collect::<Vec<_>>().join(", ")
                     ),
-                ));
-            };
-            positive(&format!("materials.{name}.area"), mat.area)?;
-            positive(&format!("materials.{name}.density"), mat.density)?;
-            match &mat.law {
-                super::LawSpec::Elastic { youngs_modulus, .. } => {
-                    positive(&format!("materials.{name}.law.elastic.youngs_modulus"), *youngs_modulus)?
-                }
-                super::LawSpec::Ogden {
-                    junction,
-                    softening,
-                    terms,
-                } => {
-                    within(
-                        &format!("materials.{name}.law.ogden.junction"),
-                        *junction,
-                        0.0,
-                        1.0 + 1e-12,
-                        "(0, 1]",
-                    )?;
-                    within(&format!("materials.{name}.law.ogden.softening"), *softening, 0.0, 1.0, "(0, 1)")?;
-                    if terms.is_empty() || terms.iter().any(|t| t.alpha == 0.0) {
-                        return Err((
-                            format!("materials.{name}.law.ogden.terms"),
-                            "need at least one term, each with α ≠ 0".into(),
-                        ));
-                    }
-                }
+                ),
             }
         }
-        positive("substitution.prestress_scale", self.substitution.prestress_scale)?;
-        if self.formfinding.is_none() {
-            if let Some(m) = self.model.members.iter().find(|m| m.rest_length.is_none_or(|l| !(l > 0.0))) {
-                return Err((
-                    format!("model.members.{}.rest_length", m.id),
-                    "without `formfinding` every member needs a rest_length > 0".into(),
-                ));
-            }
-            if self.model.tower.is_some() {
-                return Err((
-                    "formfinding".into(),
-                    "a generated tower needs form-finding (its nominal shape is not an equilibrium)".into(),
-                ));
-            }
-        }
-        let dof_count = 3 * model.node_count() - model.support_count();
-        if let Some(e) = &self.eigen {
-            let r = &e.rayleigh;
-            let given = r.alpha.is_some() || r.beta.is_some();
-            let from_modes = r.modes.is_some() || r.auto_modes.is_some();
-            if given == from_modes || (given && (r.alpha.is_none() || r.beta.is_none())) || (r.modes.is_some() && r.auto_modes.is_some()) {
-                return Err((
-                    "eigen.rayleigh".into(),
-                    "give `alpha` and `beta`, or `modes` (or `auto_modes`) with `ratios`".into(),
-                ));
-            }
-            if let Some(modes) = r.modes {
-                for (k, m) in modes.iter().enumerate() {
-                    if *m < 1 || *m > dof_count {
-                        return Err((
-                            format!("eigen.rayleigh.modes[{k}]"),
-                            format!("is {m}; must lie in 1..={dof_count} (the model has {dof_count} DOF)"),
-                        ));
-                    }
-                }
-                if modes[0] == modes[1] {
-                    return Err(("eigen.rayleigh.modes".into(), "the two modes must differ".into()));
-                }
-            }
-            if from_modes {
-                let Some(ratios) = r.ratios else {
-                    return Err((
-                        "eigen.rayleigh.ratios".into(),
-                        "needed with `modes`: the damping ratio of each mode".into(),
-                    ));
-                };
-                for (k, z) in ratios.iter().enumerate() {
-                    within(&format!("eigen.rayleigh.ratios[{k}]"), *z, -1e-300, 1.0, "[0, 1)")?;
-                }
-            }
-            for (f, v) in [("eigen.rayleigh.alpha", r.alpha), ("eigen.rayleigh.beta", r.beta)] {
-                if let Some(v) = v {
-                    within(f, v, -1e-300, f64::INFINITY, "[0, ∞)")?;
-                }
-            }
-        }
-        for (name, t) in [("free_vibration", &self.free_vibration), ("deployment", &self.deployment)] {
-            let Some(t) = t else { continue };
-            positive(&format!("{name}.dt"), t.dt)?;
-            positive(&format!("{name}.duration"), t.duration)?;
-            within(&format!("{name}.newmark_gamma"), t.newmark_gamma, 0.0, 1.0, "(0, 1)")?;
-            within(&format!("{name}.newmark_beta"), t.newmark_beta, 0.0, 0.5 + 1e-12, "(0, 0.5]")?;
-            if t.damped && self.eigen.is_none() {
-                return Err((format!("{name}.damped"), "Rayleigh damping needs the `eigen` section".into()));
-            }
-            if let Some(l) = &t.load {
-                positive(&format!("{name}.load.duration"), l.duration)?;
-                for g in &l.groups {
-                    model.group(g).map_err(|e| (format!("{name}.load.groups"), e.to_string()))?;
-                }
-            }
-        }
-        if let Some(f) = &self.folding {
-            if f.steps == 0 {
-                return Err(("folding.steps".into(), "is 0; must be ≥ 1".into()));
-            }
-            for (k, p) in f.prescribe.iter().enumerate() {
-                model
-                    .group(&p.group)
-                    .map_err(|e| (format!("folding.prescribe[{k}].group"), e.to_string()))?;
-                if p.to_base == p.displacement.is_some() {
-                    return Err((
-                        format!("folding.prescribe[{k}]"),
-                        "give either `to_base: true` or `displacement`".into(),
-                    ));
-                }
-                if p.to_base {
-                    model
-                        .group("base")
-                        .map_err(|e| (format!("folding.prescribe[{k}].to_base"), e.to_string()))?;
-                }
-            }
-        }
-        if self.outputs.every == 0 {
-            return Err(("outputs.every".into(), "is 0; must be ≥ 1".into()));
-        }
-        Ok(())
+        p.positive("substitution.prestress_scale", self.substitution.prestress_scale);
     }
 
-    /// Built-in materials with this config's additions.
-    pub fn material_library(&self) -> std::collections::BTreeMap<String, super::MaterialSpec> {
-        let mut lib = super::library();
-        lib.extend(self.materials.clone());
-        lib
+    /// Without form-finding the given shape is the equilibrium, so it needs rest lengths.
+    fn check_shape(&self, p: &mut Problems) {
+        if self.formfinding.is_some() {
+            return;
+        }
+        for m in self.model.members.iter().filter(|m| !m.rest_length.is_some_and(|l| l > 0.0)) {
+            p.add(
+                format!("model.members.{}.rest_length", m.id),
+                "without `formfinding` every member needs a rest_length > 0",
+            );
+        }
+        if self.model.tower.is_some() {
+            p.add(
+                "formfinding",
+                "a generated tower needs form-finding (its nominal shape is not an equilibrium)",
+            );
+        }
+    }
+}
+
+fn check_tower(t: &TowerSpec, p: &mut Problems) {
+    if t.struts < 3 || t.stages < 1 {
+        p.add(
+            "model.tower",
+            format!("struts = {}, stages = {}; need struts ≥ 3 and stages ≥ 1", t.struts, t.stages),
+        );
+    }
+    let before = p.0.len();
+    p.positive("model.tower.radius", t.radius);
+    p.positive("model.tower.strut_length", t.strut_length);
+    p.within("model.tower.overlap", t.overlap, -1e-300, 1.0, "[0, 1)");
+    // The stage height is only meaningful for valid lengths.
+    if p.0.len() == before && t.stage_height().is_nan() {
+        p.add(
+            "model.tower.radius",
+            format!("{} m is too large for struts of {} m", t.radius, t.strut_length),
+        );
+    }
+}
+
+fn check_material(name: &str, mat: &MaterialSpec, p: &mut Problems) {
+    p.positive(&format!("materials.{name}.area"), mat.area);
+    p.positive(&format!("materials.{name}.density"), mat.density);
+    match &mat.law {
+        LawSpec::Elastic { youngs_modulus, .. } => p.positive(&format!("materials.{name}.law.elastic.youngs_modulus"), *youngs_modulus),
+        LawSpec::Ogden {
+            junction,
+            softening,
+            terms,
+        } => {
+            let field = |key: &str| format!("materials.{name}.law.ogden.{key}");
+            p.within(&field("junction"), *junction, 0.0, 1.0 + 1e-12, "(0, 1]");
+            p.within(&field("softening"), *softening, 0.0, 1.0, "(0, 1)");
+            if terms.is_empty() || terms.iter().any(|t| t.alpha == 0.0) {
+                p.add(field("terms"), "need at least one term, each with α ≠ 0");
+            }
+        }
+    }
+}
+
+/// Which keys are given is settled by the type; what remains are the ranges.
+fn check_rayleigh(r: &RayleighSpec, model: Option<&Model>, p: &mut Problems) {
+    match r {
+        RayleighSpec::Given { alpha, beta } => {
+            for (field, v) in [("eigen.rayleigh.alpha", alpha), ("eigen.rayleigh.beta", beta)] {
+                p.within(field, *v, -1e-300, f64::INFINITY, "[0, ∞)");
+            }
+        }
+        RayleighSpec::Modes { modes, ratios } => {
+            if let Some(model) = model {
+                let dof_count = 3 * model.node_count() - model.support_count();
+                for (k, m) in modes.iter().enumerate() {
+                    if *m < 1 || *m > dof_count {
+                        p.add(
+                            format!("eigen.rayleigh.modes[{k}]"),
+                            format!("is {m}; must lie in 1..={dof_count} (the model has {dof_count} DOF)"),
+                        );
+                    }
+                }
+            }
+            if modes[0] == modes[1] {
+                p.add("eigen.rayleigh.modes", "the two modes must differ");
+            }
+            check_ratios(ratios, p);
+        }
+        RayleighSpec::AutoModes { ratios, .. } => check_ratios(ratios, p),
+    }
+}
+
+fn check_ratios(ratios: &[f64; 2], p: &mut Problems) {
+    for (k, z) in ratios.iter().enumerate() {
+        p.within(&format!("eigen.rayleigh.ratios[{k}]"), *z, -1e-300, 1.0, "[0, 1)");
+    }
+}
+
+fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option<&Model>, p: &mut Problems) {
+    p.positive(&format!("{name}.dt"), t.dt);
+    p.positive(&format!("{name}.duration"), t.duration);
+    p.within(&format!("{name}.newmark_gamma"), t.newmark_gamma, 0.0, 1.0, "(0, 1)");
+    p.within(&format!("{name}.newmark_beta"), t.newmark_beta, 0.0, 0.5 + 1e-12, "(0, 0.5]");
+    if t.damped && !has_eigen {
+        p.add(format!("{name}.damped"), "Rayleigh damping needs the `eigen` section");
+    }
+    if let Some(l) = &t.load {
+        p.positive(&format!("{name}.load.duration"), l.duration);
+        if let Some(model) = model {
+            for e in l.groups.iter().filter_map(|g| model.group(g).err()) {
+                p.add(format!("{name}.load.groups"), e.to_string());
+            }
+        }
+    }
+}
+
+fn check_folding(f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
+    if f.steps == 0 {
+        p.add("folding.steps", "is 0; must be ≥ 1");
+    }
+    let Some(model) = model else { return };
+    for (k, s) in f.prescribe.iter().enumerate() {
+        if let Err(e) = model.group(&s.group) {
+            p.add(format!("folding.prescribe[{k}].group"), e.to_string());
+        }
+        if s.target == FoldTarget::ToBase {
+            if let Err(e) = model.group("base") {
+                p.add(format!("folding.prescribe[{k}].to_base"), e.to_string());
+            }
+        }
     }
 }

@@ -2,8 +2,9 @@
 //! case ids name output directories), each case a full config validated before any work.
 
 use super::CaseOutcome;
-use crate::config::{located, parse_case, CaseConfig, ConfigError};
+use crate::config::{self, CaseConfig, ConfigError, SweepAxis, ValueError};
 use serde_json::Value;
+use std::collections::HashSet;
 use std::path::Path;
 
 /// One case of a sweep.
@@ -47,101 +48,194 @@ fn value_line(text: &str, axis: &str, label: &str) -> Option<usize> {
         .map(|k| start + k + 1)
 }
 
-/// Expands a config file's text into its cases; every case is validated.
+/// Expands a config file's text into its cases; every case is validated, and every error
+/// of the file is reported (each distinct one once, with the first case it occurs in).
 pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigError> {
-    let base = parse_case(text, origin)?;
+    let base = config::parse(text, origin)?;
     let axes = base.sweep.clone().unwrap_or_default().axes;
+    // The base must be valid on its own; cases built on a broken one would only repeat it.
+    let mut errors = config::locate_errors(origin, text, base.validate().err().unwrap_or_default());
+    errors.extend(axis_errors(&axes, origin, text));
+    if !errors.is_empty() {
+        return Err(ConfigError::Values(errors));
+    }
     let mut plain = base.clone();
     plain.sweep = None;
     let base_value = serde_json::to_value(&plain).map_err(|e| ConfigError::Io {
         file: origin.into(),
         message: e.to_string(),
     })?;
-    // `at` is the line an error points to (the offending sweep value, or the base field).
-    let value_err_at = |at: Option<usize>, field: String, message: String| ConfigError::Value {
-        file: at.map_or_else(|| origin.to_string(), |line| format!("{origin}:{line}")),
-        field,
-        message,
-    };
-    let value_err = |field: String, message: String| ConfigError::Value {
-        file: located(origin, text, "sweep"),
-        field,
-        message,
-    };
-    for (a, axis) in axes.iter().enumerate() {
-        if axis.values.is_empty() {
-            return Err(value_err(
-                format!("sweep.axes[{a}].values"),
-                "is empty; give at least one value".into(),
-            ));
-        }
-        for (i, v) in axis.values.iter().enumerate() {
-            if v.label.is_empty() || !v.label.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '.') {
-                return Err(value_err(
-                    format!("sweep.axes[{a}].values[{i}].label"),
-                    format!("`{}`: use letters, digits, `-` and `.` only", v.label),
-                ));
-            }
-        }
-    }
+    let sweep = Sweep { text, origin, axes: &axes };
     let total: usize = axes.iter().map(|a| a.values.len()).product();
     let mut cases = Vec::with_capacity(total);
+    let mut seen = HashSet::new();
     for flat in 0..total {
         // Mixed-radix digits of `flat`, last axis fastest.
         let mut rem = flat;
-        let mut idx = vec![0; axes.len()];
+        let mut chosen = vec![0; axes.len()];
         for (a, axis) in axes.iter().enumerate().rev() {
-            idx[a] = rem % axis.values.len();
+            chosen[a] = rem % axis.values.len();
             rem /= axis.values.len();
         }
-        let mut v = base_value.clone();
-        let mut params = Vec::new();
-        for (a, axis) in axes.iter().enumerate() {
-            let value = &axis.values[idx[a]];
-            for (path, new) in &value.set {
-                set_path(&mut v, path, new.clone()).map_err(|m| {
-                    value_err_at(
-                        value_line(text, &axis.name, &value.label),
-                        format!("sweep.axes[{a}].values[{}].set", idx[a]),
-                        m,
-                    )
+        let params: Vec<(String, String)> = axes
+            .iter()
+            .zip(&chosen)
+            .map(|(a, &i)| (a.name.clone(), a.values[i].label.clone()))
+            .collect();
+        match sweep.case(&chosen, &base_value) {
+            Ok(config) => {
+                let id = if params.is_empty() {
+                    config.name.clone()
+                } else {
+                    params.iter().map(|(a, l)| format!("{a}-{l}")).collect::<Vec<_>>().join("_")
+                };
+                let yaml = serde_saphyr::to_string(&config).map_err(|e| ConfigError::Io {
+                    file: origin.into(),
+                    message: e.to_string(),
                 })?;
+                cases.push(Case { id, params, config, yaml });
             }
-            params.push((axis.name.clone(), value.label.clone()));
+            Err(case_errors) => {
+                let name = params.iter().map(|(a, l)| format!("{a}={l}")).collect::<Vec<_>>().join(", ");
+                for mut e in case_errors {
+                    // A bad sweep value fails every case it is in: report it once.
+                    if seen.insert((e.line, e.field.clone(), e.message.clone())) {
+                        e.field = format!("{} (in sweep case {name})", e.field);
+                        errors.push(e);
+                    }
+                }
+            }
         }
-        let field = || {
-            format!(
-                "sweep case {}",
-                params.iter().map(|(a, l)| format!("{a}={l}")).collect::<Vec<_>>().join(", ")
-            )
-        };
-        let config: CaseConfig = serde_json::from_value(v).map_err(|e| value_err(field(), e.to_string()))?;
-        config.validate().map_err(|(f, m)| {
-            // Point at the sweep value that set this field, else at the field in the base config.
-            let setter = axes.iter().zip(&idx).find_map(|(axis, &i)| {
-                let value = &axis.values[i];
-                value
-                    .set
-                    .keys()
-                    .any(|p| f.starts_with(p.as_str()))
-                    .then(|| value_line(text, &axis.name, &value.label))
-                    .flatten()
-            });
-            let at = setter.or_else(|| crate::config::locate_line(text, &f));
-            value_err_at(at, format!("{f} (in {})", field()), m)
-        })?;
-        let id = if params.is_empty() {
-            config.name.clone()
-        } else {
-            params.iter().map(|(a, l)| format!("{a}-{l}")).collect::<Vec<_>>().join("_")
-        };
-        let yaml = serde_saphyr::to_string(&config).map_err(|e| ConfigError::Io {
-            file: origin.into(),
-            message: e.to_string(),
-        })?;
-        cases.push(Case { id, params, config, yaml });
     }
-    Ok((base.name, cases))
+    if errors.is_empty() {
+        Ok((base.name, cases))
+    } else {
+        Err(ConfigError::Values(errors))
+    }
+}
+
+/// Empty axes and labels unfit for case ids.
+fn axis_errors(axes: &[SweepAxis], origin: &str, text: &str) -> Vec<ValueError> {
+    let mut errors = Vec::new();
+    let mut error = |line: Option<usize>, field: String, message: String| {
+        errors.push(ValueError {
+            file: origin.into(),
+            line: line.or_else(|| config::locate_line(text, "sweep")),
+            field,
+            message,
+        })
+    };
+    for (a, axis) in axes.iter().enumerate() {
+        if axis.values.is_empty() {
+            error(None, format!("sweep.axes[{a}].values"), "is empty; give at least one value".into());
+        }
+        for (i, v) in axis.values.iter().enumerate() {
+            if v.label.is_empty() || !v.label.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '.') {
+                // An empty label would match every `label:` line.
+                let line = (!v.label.is_empty()).then(|| value_line(text, &axis.name, &v.label)).flatten();
+                error(
+                    line,
+                    format!("sweep.axes[{a}].values[{i}].label"),
+                    format!("`{}`: use letters, digits, `-` and `.` only", v.label),
+                );
+            }
+        }
+    }
+    errors
+}
+
+/// The sweep of a file, for building its cases and locating their errors.
+struct Sweep<'a> {
+    text: &'a str,
+    origin: &'a str,
+    axes: &'a [SweepAxis],
+}
+
+impl Sweep<'_> {
+    /// The base with the chosen value of each axis set, deserialized and validated. An
+    /// error points at the sweep value that set its field, else at the field in the base.
+    fn case(&self, chosen: &[usize], base: &Value) -> Result<CaseConfig, Vec<ValueError>> {
+        let mut v = base.clone();
+        let mut errors = Vec::new();
+        for (a, &i) in chosen.iter().enumerate() {
+            for (path, new) in &self.axes[a].values[i].set {
+                if let Err(m) = set_path(&mut v, path, new.clone()) {
+                    errors.push(self.error(self.value_line(a, i), format!("sweep.axes[{a}].values[{i}].set"), m));
+                }
+            }
+        }
+        if !errors.is_empty() {
+            return Err(errors);
+        }
+        let config: CaseConfig = serde_json::from_value(v).map_err(|e| self.unreadable(chosen, base, e.to_string()))?;
+        config.validate().map_err(|errors| {
+            errors
+                .into_iter()
+                .map(|e| {
+                    let line = self
+                        .setter_line(chosen, &e.field)
+                        .or_else(|| config::locate_line(self.text, &e.field));
+                    self.error(line, e.field, e.message)
+                })
+                .collect::<Vec<_>>()
+        })?;
+        Ok(config)
+    }
+
+    /// A case that does not deserialize (a wrong type or conflicting keys): each chosen
+    /// value that breaks the base on its own is named at its line; when only their
+    /// combination fails, the case is, at the `sweep` line.
+    fn unreadable(&self, chosen: &[usize], base: &Value, message: String) -> Vec<ValueError> {
+        let errors: Vec<ValueError> = chosen
+            .iter()
+            .enumerate()
+            .filter_map(|(a, &i)| {
+                let mut v = base.clone();
+                for (path, new) in &self.axes[a].values[i].set {
+                    set_path(&mut v, path, new.clone()).ok()?;
+                }
+                let e = serde_json::from_value::<CaseConfig>(v).err()?;
+                Some(self.error(self.value_line(a, i), format!("sweep.axes[{a}].values[{i}].set"), e.to_string()))
+            })
+            .collect();
+        if errors.is_empty() {
+            vec![self.error(config::locate_line(self.text, "sweep"), "sweep".into(), message)]
+        } else {
+            errors
+        }
+    }
+
+    /// Line of the chosen sweep value that set `field`, or a section holding it, or a key inside it.
+    fn setter_line(&self, chosen: &[usize], field: &str) -> Option<usize> {
+        chosen.iter().enumerate().find_map(|(a, &i)| {
+            let mut paths = self.axes[a].values[i].set.keys();
+            paths
+                .any(|p| inside(p, field) || inside(field, p))
+                .then(|| self.value_line(a, i))
+                .flatten()
+        })
+    }
+
+    fn value_line(&self, axis: usize, value: usize) -> Option<usize> {
+        let axis = &self.axes[axis];
+        value_line(self.text, &axis.name, &axis.values[value].label)
+    }
+
+    fn error(&self, line: Option<usize>, field: String, message: String) -> ValueError {
+        ValueError {
+            file: self.origin.into(),
+            line,
+            field,
+            message,
+        }
+    }
+}
+
+/// Whether the dotted path `inner` is `outer` or lies inside it (`a.b` in `a`, `a[0]` in `a`).
+fn inside(outer: &str, inner: &str) -> bool {
+    inner
+        .strip_prefix(outer)
+        .is_some_and(|rest| rest.is_empty() || rest.starts_with(['.', '[']))
 }
 
 const COLUMNS: [&str; 13] = [
