@@ -1,4 +1,5 @@
-//! Every force law: force = d(energy)/dl and stiffness = dN/dl by central differences;
+//! Every force law: force = d(energy)/dl, stiffness = dN/dl and curvature = d²N/dl² by
+//! central differences;
 //! the Ogden curve against the reference table of notes.md; the compression branch.
 
 use tsim::law::{ogden_nominal_stress, ForceLaw, LinearElastic, MeasurePotential, OgdenCord};
@@ -24,6 +25,17 @@ fn check_derivatives(law: &dyn ForceLaw, l0: f64, lengths: &[f64]) {
             "{}: dN/dl {dn} vs k {} at l={l}",
             law.name(),
             e.stiffness
+        );
+        // The curvature against differences of the stiffness: the same budget one
+        // derivative up; its scale is the stiffness over the length (a linear law has
+        // curvature 0, and then the difference must vanish to round-off of k/l).
+        let dk = (law.eval(l + h, l0).stiffness - law.eval(l - h, l0).stiffness) / (2.0 * h);
+        let scale_c = e.curvature.abs().max(1e-6 * e.stiffness.abs() / l).max(1e-300);
+        assert!(
+            (dk - e.curvature).abs() <= 1e-6 * scale_c,
+            "{}: d²N/dl² {dk} vs {} at l={l}",
+            law.name(),
+            e.curvature
         );
         let dr = (law.eval(l, l0 + h).force - law.eval(l, l0 - h).force) / (2.0 * h);
         let r = law.d_force_d_rest(l, l0);

@@ -72,7 +72,7 @@ fn matrix_free_product_and_sparse_solve_match_dense() {
         tsim::solve::TangentSink::add(&mut sparse, i, i, scale);
     }
     let mut x = v.clone();
-    sparse.factor().unwrap();
+    sparse.factor(true).unwrap();
     sparse.solve(&mut x).unwrap();
     let mut kd = k.clone();
     for i in 0..n {

@@ -1,6 +1,8 @@
 use super::Rayleigh;
 use crate::solve::{bisect, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
-use crate::tsm::{assemble_tangents, tangent_pattern, tangent_product, Assembly, MemberState};
+use crate::tsm::{
+    assemble_objective_damping, assemble_tangents, objective_damping, tangent_pattern, tangent_product, Assembly, MemberState,
+};
 
 /// The energy ledger of one converged step [J].
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -54,20 +56,29 @@ pub struct Integrator {
     pub newton: NewtonSettings,
 }
 
-/// Which stiffness the βK damping term uses.
+/// How the stiffness-proportional term β·K of Rayleigh damping acts.
+///
+/// The paper writes C = αM + βK with K the tangent stiffness; for large motion it leaves
+/// open which K. `Objective` (the default) damps each member's extension rate along its
+/// current direction, scaled by its material tangent: f = β (dN/dl) l̇ e. A rigid-body
+/// motion gets no damping force, the dissipated power β (dN/dl) l̇² is never negative, and
+/// about a fixed state it is β K_0 v (K_T without its geometric part). Its Jacobian in the
+/// Newmark step is exact; it is not symmetric, so steps are factored by LU.
+///
+/// The other three apply β K_T(x)·v with K_T at some state, as the paper does. None is
+/// objective: a rigidly rotating member gets an apparent axial rate (from the lagged or
+/// frozen direction) and a lateral force from K_G, so the path depends on Δt (measured on
+/// the paper's deployment: docs/validation.md). They are kept to reproduce the paper.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum DampingTangent {
-    /// K_T of the stage's initial state, frozen.
-    Initial,
-    /// K_T of the last converged step (default): follows the geometry as the tower
-    /// unfolds, yet is constant within a step so Newton's Jacobian is exact. A frozen
-    /// initial tangent misdirects damping across large motion (a prototype deployed to
-    /// another equilibrium), and the current tangent makes the damping force depend on
-    /// ∂K/∂x, which the Jacobian omits (a peer solver diverges at the paper's β).
     #[default]
+    Objective,
+    /// K_T of the stage's initial state, frozen (misdirects damping across large motion).
+    Initial,
+    /// K_T of the last converged step: constant within a step, so the Jacobian is exact.
     LastConverged,
-    /// K_T of the current iterate (Jacobian omits ∂K_T/∂x · v).
+    /// K_T of the current iterate; the Jacobian omits ∂K_T/∂x · v (it is not symmetric).
     Current,
 }
 
@@ -110,12 +121,17 @@ pub struct Newmark<'a> {
     fd_next: Vec<f64>,
 }
 
-/// α M v + β K(states) v on the free DOFs into `out`.
-fn damping_force(asm: &Assembly, rayleigh: &Rayleigh, mass: &[f64], states: &[MemberState], v: &[f64], out: &mut [f64]) {
+/// The Rayleigh damping force α M v + (the β term of `damping`, with member `states`) on
+/// the free DOFs into `out`.
+fn damping_force(asm: &Assembly, damping: Damping, mass: &[f64], states: &[MemberState], v: &[f64], out: &mut [f64]) {
+    let Damping { rayleigh, tangent } = damping;
     for i in 0..v.len() {
         out[i] = rayleigh.alpha * mass[i] * v[i];
     }
-    tangent_product(asm.model, states, asm.dofs, v, rayleigh.beta, out);
+    match tangent {
+        DampingTangent::Objective => objective_damping(asm.model, states, asm.dofs, v, rayleigh.beta, out),
+        _ => tangent_product(asm.model, states, asm.dofs, v, rayleigh.beta, out),
+    }
 }
 
 impl<'a> Newmark<'a> {
@@ -150,7 +166,7 @@ impl<'a> Newmark<'a> {
             v_next: vec![0.0; n],
             fd_next: vec![0.0; n],
         };
-        damping_force(&s.asm, &s.rayleigh, &s.mass, &s.damp_states, &s.v, &mut s.fd);
+        damping_force(&s.asm, s.damping(), &s.mass, &s.damp_states, &s.v, &mut s.fd);
         for i in 0..n {
             s.a[i] = (s.f[i] - s.fd[i] - s.asm.p_free(i)) / s.mass[i];
         }
@@ -162,8 +178,15 @@ impl<'a> Newmark<'a> {
     /// Member states the βK term uses now.
     fn damping_states(&self) -> &[MemberState] {
         match self.tangent {
-            DampingTangent::Current => &self.asm.states,
-            _ => &self.damp_states,
+            DampingTangent::Current | DampingTangent::Objective => &self.asm.states,
+            DampingTangent::Initial | DampingTangent::LastConverged => &self.damp_states,
+        }
+    }
+
+    fn damping(&self) -> Damping {
+        Damping {
+            rayleigh: self.rayleigh,
+            tangent: self.tangent,
         }
     }
 
@@ -255,7 +278,7 @@ impl<'a> Newmark<'a> {
         let mut fd_next = std::mem::take(&mut self.fd_next);
         damping_force(
             &self.asm,
-            &self.rayleigh,
+            self.damping(),
             &self.mass,
             self.damping_states(),
             &self.v_next,
@@ -309,7 +332,7 @@ impl Residual for StepProblem<'_, '_> {
         nm.next_velocity(u, self.dt);
         let n = u.len();
         let mut fd = std::mem::take(&mut nm.fd_next);
-        damping_force(&nm.asm, &nm.rayleigh, &nm.mass, nm.damping_states(), &nm.v_next, &mut fd);
+        damping_force(&nm.asm, nm.damping(), &nm.mass, nm.damping_states(), &nm.v_next, &mut fd);
         let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);
         for i in 0..n {
             let m = nm.mass[i];
@@ -329,20 +352,27 @@ impl Residual for StepProblem<'_, '_> {
         }
     }
 
-    /// K_T + β_R c_v K_damp + M (c_a + α_R c_v).
+    /// K_T + M (c_a + α_R c_v) + the β_R term's derivative: β_R c_v K_T(damping states)
+    /// for the paper-style variants, the exact objective-damping block otherwise.
     fn tangent(&mut self, k: &mut dyn TangentSink) {
         let (c_a, c_v) = self.coefficients();
         let nm = &*self.nm;
         let (alpha_r, beta_r) = (nm.rayleigh.alpha, nm.rayleigh.beta);
-        assemble_tangents(
-            nm.asm.model,
-            nm.asm.dofs,
-            &[(&nm.asm.states, 1.0), (nm.damping_states(), beta_r * c_v)],
-            k,
-        );
+        let (model, dofs) = (nm.asm.model, nm.asm.dofs);
+        if nm.tangent == DampingTangent::Objective {
+            assemble_tangents(model, dofs, &[(&nm.asm.states, 1.0)], k);
+            assemble_objective_damping(model, &nm.asm.states, dofs, &nm.v_next, beta_r, c_v, k);
+        } else {
+            assemble_tangents(model, dofs, &[(&nm.asm.states, 1.0), (nm.damping_states(), beta_r * c_v)], k);
+        }
         for (i, m) in nm.mass.iter().enumerate() {
             k.add(i, i, m * (c_a + alpha_r * c_v));
         }
+    }
+
+    /// Objective damping's block is not symmetric.
+    fn symmetric(&self) -> bool {
+        self.nm.tangent != DampingTangent::Objective || self.nm.rayleigh.beta == 0.0
     }
 }
 
@@ -427,7 +457,12 @@ mod tests {
     /// shows at the size of the mass or damping terms.
     #[test]
     fn step_jacobian_matches_finite_differences() {
-        for tangent in [DampingTangent::Initial, DampingTangent::LastConverged, DampingTangent::Current] {
+        for tangent in [
+            DampingTangent::Objective,
+            DampingTangent::Initial,
+            DampingTangent::LastConverged,
+            DampingTangent::Current,
+        ] {
             moving_prism(tangent, |nm| {
                 let n = nm.mass.len();
                 let dt = 0.01;

@@ -22,11 +22,13 @@ impl ForceLaw for LinearElastic {
             return LawEval {
                 force: 0.0,
                 stiffness: 0.0,
+                curvature: 0.0,
             };
         }
         LawEval {
             force: self.ea * (l - l0) / l0,
             stiffness: self.ea / l0,
+            curvature: 0.0,
         }
     }
 

@@ -22,6 +22,12 @@ impl ForceLaw for MeasurePotential {
         LawEval {
             force: self.c * d.signum() * a.powf(self.n),
             stiffness: self.n * self.c * a.powf(self.n - 1.0),
+            // Zero for n = 1, where a^(n − 2) would be 1/0 at l = l0.
+            curvature: if self.n == 1.0 {
+                0.0
+            } else {
+                self.n * (self.n - 1.0) * self.c * d.signum() * a.powf(self.n - 2.0)
+            },
         }
     }
 

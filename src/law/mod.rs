@@ -11,13 +11,15 @@ pub use elastic::LinearElastic;
 pub use measure::MeasurePotential;
 pub use ogden::{ogden_nominal_stress, OgdenCord, OgdenTerm};
 
-/// Force and its length derivative at one length.
+/// Force and its first two length derivatives at one length.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LawEval {
     /// Axial force N [N], tension positive.
     pub force: f64,
     /// dN/dl [N/m]: the material part K_0 of the tangent stiffness uses it.
     pub stiffness: f64,
+    /// d²N/dl² [N/m²]: the Jacobian of objective damping, β (dN/dl) l̇, needs it.
+    pub curvature: f64,
 }
 
 /// A member's constitutive law, stateless: all parameters live in the implementing value,

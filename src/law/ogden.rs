@@ -10,16 +10,27 @@ pub struct OgdenTerm {
 /// Uniaxial nominal stress of the incompressible Ogden solid (paper eq 5) and its slope:
 /// F(λ) = Σ μ_i (λ^(α_i−1) − λ^(−1−α_i/2)).
 pub fn ogden_nominal_stress(terms: &[OgdenTerm], lambda: f64) -> (f64, f64) {
+    let (f, df, _) = ogden_stress_derivatives(terms, lambda);
+    (f, df)
+}
+
+/// F(λ), dF/dλ and d²F/dλ² of the Ogden curve.
+fn ogden_stress_derivatives(terms: &[OgdenTerm], lambda: f64) -> (f64, f64, f64) {
     let ln = lambda.ln();
-    terms.iter().fold((0.0, 0.0), |(f, df), t| {
+    terms.iter().fold((0.0, 0.0, 0.0), |(f, df, d2f), t| {
         let a = t.alpha;
         // One exp per term and one log in all (powf is a log and an exp, and dominated
         // the solver's profile): with x = λ^(α/2) = exp(α/2 · ln λ), λ^(α−1) = x²/λ and
-        // λ^(−1−α/2) = 1/(λx); the slope's powers are these over λ. The exponent's
+        // λ^(−1−α/2) = 1/(λx); each derivative's powers are these over λ. The exponent's
         // round-off, |α/2 · ln λ| ε, is a few ulp for any stretch a cord reaches.
         let x = (0.5 * a * ln).exp();
         let (p, q) = (x * x / lambda, 1.0 / (lambda * x));
-        (f + t.mu * (p - q), df + t.mu * ((a - 1.0) * p + (1.0 + a / 2.0) * q) / lambda)
+        let d2 = ((a - 1.0) * (a - 2.0) * p - (1.0 + a / 2.0) * (2.0 + a / 2.0) * q) / (lambda * lambda);
+        (
+            f + t.mu * (p - q),
+            df + t.mu * ((a - 1.0) * p + (1.0 + a / 2.0) * q) / lambda,
+            d2f + t.mu * d2,
+        )
     })
 }
 
@@ -102,14 +113,20 @@ impl OgdenCord {
 
     /// Nominal stress F(λ) [Pa] and dF/dλ [Pa] including the compression branch.
     pub fn nominal_stress(&self, lambda: f64) -> (f64, f64) {
+        let (f, df, _) = self.stress_derivatives(lambda);
+        (f, df)
+    }
+
+    /// F(λ), dF/dλ, d²F/dλ² [Pa] including the compression branch.
+    fn stress_derivatives(&self, lambda: f64) -> (f64, f64, f64) {
         if lambda >= self.junction {
-            return ogden_nominal_stress(&self.terms, lambda);
+            return ogden_stress_derivatives(&self.terms, lambda);
         }
         let Branch { a, b, c, .. } = self.branch;
         // The branch is defined down to λ = 0 (b > 0); a cord never inverts, but a Newton
         // trial state may: clamp the root's argument so the trial stays finite.
-        let root = (a * lambda + b).max(0.0).sqrt();
-        (-root - c, -a / (2.0 * root.max(f64::MIN_POSITIVE)))
+        let root = (a * lambda + b).max(0.0).sqrt().max(f64::MIN_POSITIVE);
+        (-root - c, -a / (2.0 * root), a * a / (4.0 * root * root * root))
     }
 
     /// ∫_1^λ F dλ' [Pa].
@@ -130,10 +147,11 @@ impl OgdenCord {
 
 impl ForceLaw for OgdenCord {
     fn eval(&self, l: f64, l0: f64) -> LawEval {
-        let (f, df) = self.nominal_stress(l / l0);
+        let (f, df, d2f) = self.stress_derivatives(l / l0);
         LawEval {
             force: self.area * f,
             stiffness: self.area * df / l0,
+            curvature: self.area * d2f / (l0 * l0),
         }
     }
 

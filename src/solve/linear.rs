@@ -63,8 +63,9 @@ pub trait TangentSolver: TangentSink + Send {
     /// Zeroes the matrix for the next assembly.
     fn clear(&mut self);
     /// Factors the assembled matrix, replacing the previous factorization; the assembled
-    /// matrix is consumed (clear before the next assembly).
-    fn factor(&mut self) -> Result<(), LinearError>;
+    /// matrix is consumed (clear before the next assembly). A `symmetric` matrix is tried
+    /// with Cholesky first (which reads one triangle only); any other goes to LU directly.
+    fn factor(&mut self, symmetric: bool) -> Result<(), LinearError>;
     /// Solves K x = rhs in place (rhs becomes x) with the last factorization.
     fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError>;
 }
@@ -126,20 +127,22 @@ impl TangentSolver for DenseSolver {
         self.k.fill(0.0);
     }
 
-    fn factor(&mut self) -> Result<(), LinearError> {
+    fn factor(&mut self, symmetric: bool) -> Result<(), LinearError> {
         let n = self.k.nrows();
         self.factored = Factored::None;
-        self.work.copy_from(&self.k);
-        let llt = llt_factor::cholesky_in_place(
-            self.work.as_mut(),
-            Default::default(),
-            Par::Seq,
-            MemStack::new(&mut self.mem),
-            Default::default(),
-        );
-        if llt.is_ok() {
-            self.factored = Factored::Cholesky;
-            return Ok(());
+        if symmetric {
+            self.work.copy_from(&self.k);
+            let llt = llt_factor::cholesky_in_place(
+                self.work.as_mut(),
+                Default::default(),
+                Par::Seq,
+                MemStack::new(&mut self.mem),
+                Default::default(),
+            );
+            if llt.is_ok() {
+                self.factored = Factored::Cholesky;
+                return Ok(());
+            }
         }
         lu_factor::lu_in_place(
             self.k.as_mut(),
@@ -305,26 +308,29 @@ impl TangentSolver for SparseSolver {
         self.values.fill(0.0);
     }
 
-    fn factor(&mut self) -> Result<(), LinearError> {
+    fn factor(&mut self, symmetric: bool) -> Result<(), LinearError> {
         let n = self.col_ptr.len() - 1;
         self.factored = Factored::None;
+        self.failed_pivot = None;
         let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
         let a = SparseColMatRef::new(structure, &self.values);
-        let llt = self.symbolic.factorize_numeric_llt(
-            &mut self.l_values,
-            a,
-            Side::Lower,
-            LltRegularization::default(),
-            Par::Seq,
-            MemStack::new(&mut self.mem),
-            Default::default(),
-        );
-        match llt {
-            Ok(_) => {
-                self.factored = Factored::Cholesky;
-                return Ok(());
+        if symmetric {
+            let llt = self.symbolic.factorize_numeric_llt(
+                &mut self.l_values,
+                a,
+                Side::Lower,
+                LltRegularization::default(),
+                Par::Seq,
+                MemStack::new(&mut self.mem),
+                Default::default(),
+            );
+            match llt {
+                Ok(_) => {
+                    self.factored = Factored::Cholesky;
+                    return Ok(());
+                }
+                Err(e) => self.failed_pivot = Some(self.pivot_dof(e)),
             }
-            Err(e) => self.failed_pivot = Some(self.pivot_dof(e)),
         }
         let singular = LinearError::Singular {
             dof: self.failed_pivot,
@@ -413,7 +419,7 @@ mod tests {
         for &(i, j, v) in entries.iter().filter(|&&(i, j, _)| zero != Some(i) && zero != Some(j)) {
             solver.add(i, j, v);
         }
-        solver.factor()?;
+        solver.factor(true)?;
         let mut x = vec![1.0; n];
         solver.solve(&mut x)
     }

@@ -150,6 +150,10 @@ pub trait Residual {
     /// Adds K = −∂r/∂u at the point of the last `residual` call. Newton asks for it only
     /// when it factors, so a converged or reusing iteration assembles nothing.
     fn tangent(&mut self, k: &mut dyn TangentSink);
+    /// Whether the tangent is symmetric (then Cholesky may factor it).
+    fn symmetric(&self) -> bool {
+        true
+    }
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -329,7 +333,7 @@ fn iterate(
             ws.factored = false;
             ws.solver.clear();
             problem.tangent(&mut *ws.solver);
-            ws.solver.factor()?;
+            ws.solver.factor(problem.symmetric())?;
             ws.factored = true;
             factorizations += 1;
         }

@@ -49,6 +49,8 @@ pub struct MemberState {
     pub force: f64,
     /// dN/dl [N/m].
     pub stiffness: f64,
+    /// d²N/dl² [N/m²].
+    pub curvature: f64,
 }
 
 pub use crate::solve::TangentSink;
@@ -65,6 +67,7 @@ pub fn member_states(model: &Model, elements: &Elements, x: &[Vector3<f64>], sta
             dir: d / length,
             force: e.force,
             stiffness: e.stiffness,
+            curvature: e.curvature,
         }
     }));
 }
@@ -100,20 +103,24 @@ pub fn assemble_tangents(model: &Model, dofs: &DofMap, terms: &[(&[MemberState],
         let k = terms
             .iter()
             .fold(Matrix3::zeros(), |k, (states, factor)| k + member_block(&states[e]) * *factor);
-        let [a, b] = mem.nodes;
-        let free = [0, 1, 2, 3, 4, 5].map(|i| dofs.free(if i < 3 { a } else { b }, i % 3));
-        // [[k, −k], [−k, k]]
-        let block = std::array::from_fn(|r| {
-            std::array::from_fn(|c| {
-                if (r < 3) == (c < 3) {
-                    k[(r % 3, c % 3)]
-                } else {
-                    -k[(r % 3, c % 3)]
-                }
-            })
-        });
-        sink.add_element(e, &free, &block);
+        add_member_block(dofs, e, mem.nodes, &k, sink);
     }
+}
+
+/// Adds member `e`'s 6×6 block [[k, −k], [−k, k]] (k the block on its relative position)
+/// on the free DOFs of its nodes.
+fn add_member_block(dofs: &DofMap, e: usize, [a, b]: [usize; 2], k: &Matrix3<f64>, sink: &mut (impl TangentSink + ?Sized)) {
+    let free = [0, 1, 2, 3, 4, 5].map(|i| dofs.free(if i < 3 { a } else { b }, i % 3));
+    let block = std::array::from_fn(|r| {
+        std::array::from_fn(|c| {
+            if (r < 3) == (c < 3) {
+                k[(r % 3, c % 3)]
+            } else {
+                -k[(r % 3, c % 3)]
+            }
+        })
+    });
+    sink.add_element(e, &free, &block);
 }
 
 /// Every (row, column) of free DOFs that K_T can fill: the DOFs of each member's two
@@ -129,21 +136,66 @@ pub fn tangent_pattern<'a>(model: &'a Model, dofs: &'a DofMap) -> impl Iterator<
     })
 }
 
-/// out += factor · K_T(states) · v on the free DOFs, member by member (no matrix): the
-/// βK part of Rayleigh damping.
-pub fn tangent_product(model: &Model, states: &[MemberState], dofs: &DofMap, v: &[f64], factor: f64, out: &mut [f64]) {
-    let value = |n: usize, a: usize| dofs.free(n, a).map_or(0.0, |i| v[i]);
-    for (mem, s) in model.members.iter().zip(states) {
-        let [a, b] = mem.nodes;
-        let rel = Vector3::new(value(b, 0) - value(a, 0), value(b, 1) - value(a, 1), value(b, 2) - value(a, 2));
-        let f = member_block(s) * rel * factor;
-        for ax in 0..3 {
-            if let Some(i) = dofs.free(a, ax) {
-                out[i] -= f[ax];
-            }
-            if let Some(i) = dofs.free(b, ax) {
-                out[i] += f[ax];
-            }
+/// The relative velocity v_b − v_a of a member's ends from free-DOF velocities `v`.
+fn relative(dofs: &DofMap, v: &[f64], [a, b]: [usize; 2]) -> Vector3<f64> {
+    let value = |n: usize, ax: usize| dofs.free(n, ax).map_or(0.0, |i| v[i]);
+    Vector3::new(value(b, 0) - value(a, 0), value(b, 1) - value(a, 1), value(b, 2) - value(a, 2))
+}
+
+/// Adds a member force `f` (on its second node; −f on its first) to the free DOFs of `out`.
+fn scatter(dofs: &DofMap, [a, b]: [usize; 2], f: &Vector3<f64>, out: &mut [f64]) {
+    for ax in 0..3 {
+        if let Some(i) = dofs.free(a, ax) {
+            out[i] -= f[ax];
         }
+        if let Some(i) = dofs.free(b, ax) {
+            out[i] += f[ax];
+        }
+    }
+}
+
+/// out += the objective stiffness-proportional damping force of every member: an axial
+/// force β (dN/dl) l̇ along the member, l̇ = e·(v_b − v_a) its extension rate (`factor` = β).
+/// A rigid motion (v_b − v_a = ω × d) has l̇ = 0 and gets no force; the power dissipated,
+/// β (dN/dl) l̇², is positive wherever the material tangent is. For small motions about a
+/// state it is β K_0 v: K_T's geometric part is left out, which is what makes it objective.
+pub fn objective_damping(model: &Model, states: &[MemberState], dofs: &DofMap, v: &[f64], factor: f64, out: &mut [f64]) {
+    for (mem, s) in model.members.iter().zip(states) {
+        let rate = s.dir.dot(&relative(dofs, v, mem.nodes));
+        scatter(dofs, mem.nodes, &(s.dir * (factor * s.stiffness * rate)), out);
+    }
+}
+
+/// Adds ∂/∂u of the objective damping force when the velocities follow the coordinates as
+/// v = c_v u + const (Newmark: c_v = γ/(βΔt)). Per member, with d = x_b − x_a, e = d/l,
+/// P = I − e eᵀ, w = v_b − v_a, l̇ = e·w and k = dN/dl, the block on d is
+/// factor · [c_v k e eᵀ + (dk/dl) l̇ e eᵀ + k (e (P w)ᵀ + l̇ P)/l]: not symmetric (the
+/// e (P w)ᵀ term), so the step matrix needs a general (LU) factorization.
+pub fn assemble_objective_damping(
+    model: &Model,
+    states: &[MemberState],
+    dofs: &DofMap,
+    v: &[f64],
+    factor: f64,
+    c_v: f64,
+    sink: &mut (impl TangentSink + ?Sized),
+) {
+    for (e, (mem, s)) in model.members.iter().zip(states).enumerate() {
+        let w = relative(dofs, v, mem.nodes);
+        let rate = s.dir.dot(&w);
+        let ee = s.dir * s.dir.transpose();
+        let p = Matrix3::identity() - ee;
+        let k = (ee * ((c_v * s.stiffness + s.curvature * rate) * factor))
+            + (s.dir * (p * w).transpose() + p * rate) * (factor * s.stiffness / s.length);
+        add_member_block(dofs, e, mem.nodes, &k, sink);
+    }
+}
+
+/// out += factor · K_T(states) · v on the free DOFs, member by member (no matrix): the
+/// βK part of paper-style Rayleigh damping.
+pub fn tangent_product(model: &Model, states: &[MemberState], dofs: &DofMap, v: &[f64], factor: f64, out: &mut [f64]) {
+    for (mem, s) in model.members.iter().zip(states) {
+        let f = member_block(s) * relative(dofs, v, mem.nodes) * factor;
+        scatter(dofs, mem.nodes, &f, out);
     }
 }
