@@ -12,10 +12,10 @@ pub struct NewtonSettings {
     pub force_tolerance: f64,
     /// Tolerance on the last increment, relative to the model size. Default 1e-10.
     pub displacement_tolerance: f64,
-    /// Largest increment of one iteration, relative to the model size; a longer Newton
-    /// step is scaled down to it (damped Newton). Stiff struts next to soft cables make
-    /// the first linearised steps overshoot wildly from a far start; capping them keeps
-    /// form-finding on the equilibrium nearest its start. Default 0.05.
+    /// Largest increment of one iteration, relative to the model size, for problems
+    /// without a potential (time steps); a longer Newton step is scaled down to it.
+    /// Static stages (form-finding, folding) have a potential and are globalized by the
+    /// energy line search instead (see [`newton`]), which needs no such knob. Default 0.05.
     pub max_step: f64,
     /// Linear solver: `auto` (dense up to 600 free DOFs, sparse above), `dense` or `sparse`.
     pub linear_solver: LinearSolverChoice,
@@ -88,6 +88,13 @@ pub struct NewtonWorkspace {
     factored: bool,
     /// max|r| at each evaluation of the last solve, the first at the starting point [N].
     pub history: Vec<f64>,
+    /// The potential at the start and after each iteration of the last solve, for
+    /// problems that have one [J].
+    pub energies: Vec<f64>,
+    /// The Newton direction, a trial point of the line search and its correction.
+    d: Vec<f64>,
+    trial: Vec<f64>,
+    correction: Vec<f64>,
 }
 
 impl NewtonWorkspace {
@@ -111,6 +118,10 @@ impl NewtonWorkspace {
             reuse: settings.tangent.reuses(transient),
             factored: false,
             history: Vec::with_capacity(64),
+            energies: Vec::with_capacity(64),
+            d: vec![0.0; n],
+            trial: vec![0.0; n],
+            correction: vec![0.0; n],
         }
     }
 
@@ -153,6 +164,11 @@ pub trait Residual {
     /// Whether the tangent is symmetric (then Cholesky may factor it).
     fn symmetric(&self) -> bool {
         true
+    }
+    /// The potential whose gradient is −r, at `u`, for a problem that has one (a static
+    /// equilibrium minimises its total potential energy); `None` otherwise.
+    fn energy(&mut self, _u: &[f64]) -> Option<f64> {
+        None
     }
 }
 
@@ -304,6 +320,9 @@ fn iterate(
     let mut previous = f64::INFINITY;
     let increment_tolerance = settings.displacement_tolerance * length;
     ws.history.clear();
+    ws.energies.clear();
+    let mut energy = problem.energy(u);
+    ws.energies.extend(energy);
     for iteration in 0..=settings.max_iterations {
         let scale = problem.residual(u, &mut ws.r);
         let (res, worst_dof) = max_abs(&ws.r).map_err(|dof| {
@@ -338,14 +357,104 @@ fn iterate(
             factorizations += 1;
         }
         previous = res;
-        ws.solver.solve(&mut ws.r)?;
-        (increment, _) = max_abs(&ws.r).map_err(|dof| SolveError::NonFinite { iteration, dof: Some(dof) })?;
-        let damping = (settings.max_step * length / increment).min(1.0);
-        for (ui, di) in u.iter_mut().zip(&ws.r) {
-            *ui += damping * di;
+        ws.d.copy_from_slice(&ws.r);
+        ws.solver.solve(&mut ws.d)?;
+        (increment, _) = max_abs(&ws.d).map_err(|dof| SolveError::NonFinite { iteration, dof: Some(dof) })?;
+        match energy {
+            Some(e0) => {
+                let (moved, e, corrections) = line_search(problem, u, e0, ws)?;
+                increment = moved;
+                factorizations += corrections;
+                energy = Some(e);
+                ws.energies.push(e);
+            }
+            None => {
+                let damping = (settings.max_step * length / increment).min(1.0);
+                for (ui, di) in u.iter_mut().zip(&ws.d) {
+                    *ui += damping * di;
+                }
+            }
         }
     }
     unreachable!("the loop returns at its last iteration")
+}
+
+/// Sufficient decrease of the Armijo condition E(u + α d) ≤ E(u) + c α E'(0): the usual
+/// small c (Nocedal & Wright, Numerical Optimization, §3.1: 1e-4), so that any step that
+/// lowers the energy appreciably is taken whole.
+const ARMIJO: f64 = 1e-4;
+/// Halvings before the line search gives up looking for a decrease: 2^-40 ≈ 1e-12 of the
+/// Newton step, below which only round-off is left to find.
+const MAX_HALVINGS: u32 = 40;
+/// Round-off of a potential summed over members, relative to its size: each term carries
+/// a few ε and there are up to ~1e5 members; 1e-12 ≈ 4500 ε.
+const ENERGY_ROUNDOFF: f64 = 1e-12;
+
+/// Backtracking line search on the potential along the Newton direction `ws.d` from `u`
+/// (updated to the accepted point), each trial with a Newton correction; returns the
+/// largest coordinate change, the energy there and the factorizations the corrections
+/// made.
+///
+/// Why: form-finding from an unbalanced shape, with struts ~1e9 times stiffer than the
+/// cables, makes early Newton steps overshoot wildly; a fixed cap on the step length
+/// (the earlier remedy) stalled on Table 1's uniform C. The potential decreases along
+/// the Newton direction wherever the tangent is positive definite (E'(0) = −r·d < 0);
+/// where it is not, Newton may point uphill and the direction is reversed, which is
+/// downhill. The energy falls at every iteration, so the solve ends in a minimum of the
+/// potential: a stable equilibrium. Near convergence the decrease is below the energy's
+/// round-off, and the full Newton step is accepted within it.
+///
+/// The correction: a stiff strut is nearly a length constraint, and a straight step that
+/// turns it lengthens it to second order, which its stiffness turns into a large energy
+/// (the Maratos effect of constrained optimization): a plain Armijo search then accepts
+/// only steps of ~1/64 of Newton's. So a trial point t = u + α d that does not lower the
+/// energy enough is corrected by one Newton iteration from t, t + K(t)⁻¹ r(t) (a second
+/// factorization, at t's geometry, so that the struts' directions are the new ones),
+/// which restores the struts' lengths; the corrected point must pass the same test
+/// (Nocedal & Wright, Numerical Optimization, §15.6, second-order correction).
+fn line_search(problem: &mut impl Residual, u: &mut [f64], e0: f64, ws: &mut NewtonWorkspace) -> Result<(f64, f64, usize), SolveError> {
+    let mut slope: f64 = -ws.r.iter().zip(&ws.d).map(|(r, d)| r * d).sum::<f64>();
+    if slope > 0.0 {
+        ws.d.iter_mut().for_each(|d| *d = -*d);
+        slope = -slope;
+    }
+    let floor = ENERGY_ROUNDOFF * e0.abs();
+    let (mut alpha, mut factorizations) = (1.0, 0);
+    for _ in 0..MAX_HALVINGS {
+        let enough = e0 + ARMIJO * alpha * slope + floor;
+        for ((t, ui), di) in ws.trial.iter_mut().zip(u.iter()).zip(&ws.d) {
+            *t = ui + alpha * di;
+        }
+        let mut e = problem.energy(&ws.trial).unwrap_or(f64::NAN);
+        if !(e <= enough) {
+            factorizations += 1;
+            e = corrected(problem, ws).unwrap_or(f64::NAN);
+        }
+        if e <= enough {
+            let moved = ws.trial.iter().zip(u.iter()).fold(0.0_f64, |m, (t, ui)| m.max((t - ui).abs()));
+            u.copy_from_slice(&ws.trial);
+            return Ok((moved, e, factorizations));
+        }
+        alpha *= 0.5;
+    }
+    // No decrease at any length: stay (the next residual shows whether that converged).
+    Ok((0.0, e0, factorizations))
+}
+
+/// Moves `ws.trial` by one Newton iteration from it, K(t)⁻¹ r(t), and returns the energy
+/// there; `None` where the tangent at the trial point does not factor.
+fn corrected(problem: &mut impl Residual, ws: &mut NewtonWorkspace) -> Option<f64> {
+    problem.residual(&ws.trial, &mut ws.correction);
+    ws.solver.clear();
+    problem.tangent(&mut *ws.solver);
+    ws.factored = ws.solver.factor(problem.symmetric()).is_ok();
+    if !ws.factored || ws.solver.solve(&mut ws.correction).is_err() {
+        return None;
+    }
+    for (t, c) in ws.trial.iter_mut().zip(&ws.correction) {
+        *t += c;
+    }
+    problem.energy(&ws.trial)
 }
 
 #[cfg(test)]

@@ -3,6 +3,7 @@
 //! the paper, but the common scheme takes any law (a model given with real rest lengths
 //! is brought to its equilibrium the same way).
 
+use super::eigen::{lowest_stiffness, tangent_matrix};
 use super::{solve_error, Analysis, Settings, StaticEquilibrium};
 use crate::error::Result;
 use crate::model::height;
@@ -32,8 +33,14 @@ pub struct Equilibrium {
     pub lengths: Vec<f64>,
     /// max|r| at each Newton iteration, the first at the start [N].
     pub residuals: Vec<f64>,
+    /// Total potential at the start and after each iteration [J]: never rises.
+    pub energies: Vec<f64>,
     /// Largest support reaction [N]: zero for a true self-equilibrium.
     pub max_reaction: f64,
+    /// Lowest eigenvalue of K_T on the free DOFs [N/m] and where it acts: > 0 is a stable
+    /// equilibrium (a minimum of the potential).
+    pub lowest_stiffness: f64,
+    pub lowest_stiffness_at: String,
 }
 
 impl Analysis for SelfEquilibrium {
@@ -57,11 +64,15 @@ impl Analysis for SelfEquilibrium {
             .filter(|&i| dofs.free(i / 3, i % 3).is_none())
             .map(|i| asm.p[i].abs())
             .fold(0.0, f64::max);
+        let (lowest_stiffness, lowest_stiffness_at) = lowest_stiffness(&tangent_matrix(&asm), &dofs, model)?;
         let found = Equilibrium {
             forces: asm.states.iter().map(|s| s.force).collect(),
             lengths: asm.states.iter().map(|s| s.length).collect(),
             residuals: ws.history,
+            energies: ws.energies,
             max_reaction,
+            lowest_stiffness,
+            lowest_stiffness_at,
         };
         Ok((State::at_rest(asm.x), found))
     }
@@ -72,9 +83,15 @@ impl Analysis for SelfEquilibrium {
 pub struct FormFindSummary {
     pub iterations: usize,
     pub residuals: Vec<f64>,
+    /// Total measure potential at the start and after each iteration [J].
+    pub energies: Vec<f64>,
     /// Largest support reaction [N] (zero for a self-equilibrium).
     pub max_reaction: f64,
+    /// Which equilibrium was found: its height [m] and its stability (the lowest
+    /// eigenvalue of the measure structure's K_T [N/m], > 0: stable, and where it acts).
     pub height: f64,
+    pub lowest_stiffness: f64,
+    pub lowest_stiffness_at: String,
     pub min_force: f64,
     pub max_force: f64,
 }
@@ -85,8 +102,11 @@ impl FormFindSummary {
         FormFindSummary {
             iterations: found.residuals.len() - 1,
             residuals: found.residuals.clone(),
+            energies: found.energies.clone(),
             max_reaction: found.max_reaction,
             height: height(&state.positions),
+            lowest_stiffness: found.lowest_stiffness,
+            lowest_stiffness_at: found.lowest_stiffness_at.clone(),
             min_force: forces.iter().copied().fold(f64::INFINITY, f64::min),
             max_force: forces.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         }

@@ -2,7 +2,8 @@ use crate::solve::{Residual, Scale, TangentSink};
 use crate::tsm::Assembly;
 
 /// Static nodal equilibrium r(u) = f_ext − p(u) with tangent K_T: the problem of
-/// form-finding and of every folding step.
+/// form-finding and of every folding step. It has a potential (strain energy less the
+/// load's work), so Newton on it is globalized by an energy line search.
 pub struct StaticEquilibrium<'a> {
     pub asm: Assembly<'a>,
     /// External load on the free DOFs [N].
@@ -21,5 +22,12 @@ impl Residual for StaticEquilibrium<'_> {
 
     fn tangent(&mut self, k: &mut dyn TangentSink) {
         self.asm.add_tangent(1.0, k);
+    }
+
+    /// Strain energy less the work of the load: its gradient is −r.
+    fn energy(&mut self, u: &[f64]) -> Option<f64> {
+        self.asm.set_free(u);
+        let work: f64 = self.load.iter().zip(u).map(|(f, ui)| f * ui).sum();
+        Some(self.asm.strain_energy() - work)
     }
 }

@@ -46,6 +46,16 @@ impl<'a> Assembly<'a> {
         self.update();
     }
 
+    /// Strain energy of all members at the current `x` [J].
+    pub fn strain_energy(&self) -> f64 {
+        self.states
+            .iter()
+            .zip(&self.elements.laws)
+            .zip(&self.elements.rest)
+            .map(|((s, law), &l0)| law.energy(s.length, l0))
+            .sum()
+    }
+
     /// Free coordinates of the current `x`.
     pub fn free_coordinates(&self) -> Vec<f64> {
         (0..self.dofs.len())
