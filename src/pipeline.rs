@@ -47,6 +47,7 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     // 1–2. Form-finding and substitution by real materials (or the given rest lengths).
     let (mut structure, equilibrium, found) = shape(cfg, &model, &settings, recorder)?;
     summary.substitution = SubstitutionSummary::new(&structure, &equilibrium)?;
+    summary.substitution.require_stable(cfg.substitution.allow_unstable)?;
     record_structure(recorder, &structure, &equilibrium, found.as_ref())?;
     summary.formfinding = found.map(|f| f.summary);
     // 3. Eigen analysis at the equilibrium, and the Rayleigh damping it gives.

@@ -347,3 +347,80 @@ fn figures_are_optional() {
     assert_eq!(outcome["status"], "complete");
     assert!(outcome["figures"].as_str().unwrap().starts_with("not drawn"), "{outcome}");
 }
+
+/// Two values of one axis with the same label would share a case directory (case.yaml
+/// from one, result.h5 from the other): `check` rejects them, naming both lines.
+#[test]
+fn duplicate_sweep_labels_are_rejected() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good.replace("label: \"0.05\"", "label: \"0.1\"");
+    assert_ne!(text, good, "the sweep fixture has a value labelled 0.05");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<usize> = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| l.contains("label: \"0.1\""))
+        .map(|(i, _)| i + 1)
+        .collect();
+    assert_eq!(lines.len(), 2, "{text}");
+    assert!(
+        err.contains(&format!("{}:{}", path.display(), lines[1]))
+            && err.contains(&format!("(line {})", lines[0]))
+            && err.contains("must differ"),
+        "{err}"
+    );
+}
+
+/// Values that would run forever, overflow the stack or find nothing are rejected before
+/// any work, each at its line: a step longer than its stage, a bisection deeper than 30
+/// halvings (it recurses once per halving), negative or zero measure coefficients.
+#[test]
+fn nonsense_values_are_rejected_at_their_lines() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good
+        .split("sweep:")
+        .next()
+        .unwrap()
+        .replace(
+            "formfinding: {}",
+            "formfinding: { measure: { strut_ea: -1.0, cable_n: 0.0, cable_c: { uniform: 0.0 } } }",
+        )
+        .replace("  duration: 0.1\n", "  duration: 0.1\n  dt: 0.5\n  max_cuts: 10000\n");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let ff = at(&path, &text, "formfinding:");
+    for needle in [
+        format!("{ff}: `formfinding.measure.strut_ea`"),
+        format!("{ff}: `formfinding.measure.cable_n`"),
+        format!("{ff}: `formfinding.measure.cable_c.uniform`"),
+        format!("{}: `deployment.dt`", at(&path, &text, "dt: 0.5")),
+        format!("{}: `deployment.max_cuts`", at(&path, &text, "max_cuts: 10000")),
+    ] {
+        assert!(err.contains(&needle), "missing {needle} in\n{err}");
+    }
+}
+
+/// A prestress scaled to nothing leaves a real structure without stiffness against its
+/// mechanisms: the case fails at substitution, naming the softest direction, instead of
+/// running eigen analysis and dynamics about an unstable state.
+#[test]
+fn an_unstable_structure_fails_at_substitution() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good
+        .split("sweep:")
+        .next()
+        .unwrap()
+        .replace("cable: rubber }", "cable: rubber, prestress_scale: 1.0e-300 }");
+    let dir = scratch("unstable");
+    let path = dir.join("unstable.yaml");
+    std::fs::write(&path, &text).unwrap();
+    let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let o = outcomes(&dir);
+    let status = o[0]["status"].as_str().unwrap();
+    assert!(
+        status.starts_with("failed: substitution: the real structure is not stable") && status.contains("node `"),
+        "{status}"
+    );
+}

@@ -111,6 +111,11 @@ pub struct SubstitutionSpec {
     /// Factor on the form-found self-stress (the self-stress is defined up to a factor).
     #[serde(default = "one")]
     pub prestress_scale: f64,
+    /// Run on when the real structure is not stable (K_T not positive definite at its
+    /// equilibrium); by default the case fails there, naming the softest direction.
+    /// Left out of the resolved config when false, so that earlier case.yaml files match.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub allow_unstable: bool,
 }
 
 fn one() -> f64 {

@@ -2,6 +2,7 @@ use super::schema::*;
 use super::{LawSpec, MaterialSpec};
 use crate::model::generate::TowerSpec;
 use crate::model::Model;
+use crate::stage::measure::{CableCoefficients, MeasureSpec};
 
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
@@ -81,6 +82,9 @@ impl CaseConfig {
         }
         if let Some(f) = &self.folding {
             check_folding(f, model.as_ref(), &mut p);
+        }
+        if let Some(ff) = &self.formfinding {
+            check_measure(&ff.measure, &mut p);
         }
         if self.outputs.every == 0 {
             p.add("outputs.every", "is 0; must be ≥ 1");
@@ -230,9 +234,58 @@ fn check_ratios(ratios: &[f64; 2], p: &mut Problems) {
     }
 }
 
+/// Table 1's coefficients: positive and finite (a zero or negative C has no self-stress
+/// to find; n ≥ 1 keeps the potential convex in the length).
+fn check_measure(m: &MeasureSpec, p: &mut Problems) {
+    p.positive("formfinding.measure.strut_ea", m.strut_ea);
+    if let Some(l0) = m.strut_rest_length {
+        p.positive("formfinding.measure.strut_rest_length", l0);
+    }
+    for (field, n) in [
+        ("formfinding.measure.strut_n", m.strut_n),
+        ("formfinding.measure.cable_n", m.cable_n),
+    ] {
+        if !(n >= 1.0 && n.is_finite()) {
+            p.add(field, format!("is {n}; must be a finite number ≥ 1"));
+        }
+    }
+    match &m.cable_c {
+        CableCoefficients::Uniform(c) => p.positive("formfinding.measure.cable_c.uniform", *c),
+        CableCoefficients::SelfStress { mean } => p.positive("formfinding.measure.cable_c.self_stress.mean", *mean),
+        CableCoefficients::PerGroup(groups) => {
+            for (g, c) in groups {
+                p.positive(&format!("formfinding.measure.cable_c.per_group.{g}"), *c);
+            }
+        }
+    }
+}
+
+/// Most halvings of a failing step: 2^30 sub-steps is already far past any use, and the
+/// bisection recurses once per halving.
+const MAX_CUTS: u32 = 30;
+
+fn check_cuts(field: &str, cuts: u32, p: &mut Problems) {
+    if cuts > MAX_CUTS {
+        p.add(
+            field,
+            format!("is {cuts}; at most {MAX_CUTS} halvings (2^{MAX_CUTS} sub-steps) are allowed"),
+        );
+    }
+}
+
 fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option<&Model>, p: &mut Problems) {
     p.positive(&format!("{name}.dt"), t.dt);
     p.positive(&format!("{name}.duration"), t.duration);
+    if t.dt > t.duration {
+        p.add(
+            format!("{name}.dt"),
+            format!(
+                "{} s is longer than the duration {} s: the stage would take no step",
+                t.dt, t.duration
+            ),
+        );
+    }
+    check_cuts(&format!("{name}.max_cuts"), t.max_cuts, p);
     p.within(&format!("{name}.newmark_gamma"), t.newmark_gamma, 0.0, 1.0, "(0, 1)");
     p.within(&format!("{name}.newmark_beta"), t.newmark_beta, 0.0, 0.5 + 1e-12, "(0, 0.5]");
     if t.damped && !has_eigen {
@@ -252,6 +305,7 @@ fn check_folding(f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
     if f.steps == 0 {
         p.add("folding.steps", "is 0; must be ≥ 1");
     }
+    check_cuts("folding.max_cuts", f.max_cuts, p);
     let Some(model) = model else { return };
     for (k, s) in f.prescribe.iter().enumerate() {
         if let Err(e) = model.group(&s.group) {

@@ -33,19 +33,27 @@ fn set_path(v: &mut Value, path: &str, new: Value) -> Result<(), String> {
 
 /// Line of an axis value: the first `label:` line carrying `label` after the axis' `name:`.
 fn value_line(text: &str, axis: &str, label: &str) -> Option<usize> {
+    value_lines(text, axis, label).first().copied()
+}
+
+/// Every `label:` line carrying `label` after the axis' `name:` (1-based).
+fn value_lines(text: &str, axis: &str, label: &str) -> Vec<usize> {
     let lines: Vec<&str> = text.lines().collect();
-    let start = lines
+    let Some(start) = lines
         .iter()
-        .position(|l| l.trim_start().trim_start_matches("- ").trim_start() == format!("name: {axis}"))?;
+        .position(|l| l.trim_start().trim_start_matches("- ").trim_start() == format!("name: {axis}"))
+    else {
+        return Vec::new();
+    };
     let quoted = [
         format!("label: {label}"),
         format!("label: \"{label}\""),
         format!("label: '{label}'"),
     ];
-    lines[start..]
-        .iter()
-        .position(|l| quoted.iter().any(|q| l.contains(q.as_str())))
-        .map(|k| start + k + 1)
+    (start..lines.len())
+        .filter(|&k| quoted.iter().any(|q| lines[k].contains(q.as_str())))
+        .map(|k| k + 1)
+        .collect()
 }
 
 /// Expands a config file's text into its cases; every case is validated, and every error
@@ -130,6 +138,20 @@ fn axis_errors(axes: &[SweepAxis], origin: &str, text: &str) -> Vec<ValueError> 
             error(None, format!("sweep.axes[{a}].values"), "is empty; give at least one value".into());
         }
         for (i, v) in axis.values.iter().enumerate() {
+            // Two values with one label would be two cases in one directory.
+            if let Some(j) = axis.values[..i].iter().position(|w| w.label == v.label) {
+                let lines = value_lines(text, &axis.name, &v.label);
+                let at = |k: usize| lines.get(k).map_or_else(String::new, |l| format!(" (line {l})"));
+                error(
+                    lines.get(1).copied(),
+                    format!("sweep.axes[{a}].values[{i}].label"),
+                    format!(
+                        "`{}` is also the label of values[{j}]{}: labels name case directories and must differ within an axis",
+                        v.label,
+                        at(0)
+                    ),
+                );
+            }
             if v.label.is_empty() || !v.label.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '.') {
                 // An empty label would match every `label:` line.
                 let line = (!v.label.is_empty()).then(|| value_line(text, &axis.name, &v.label)).flatten();

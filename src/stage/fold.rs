@@ -3,10 +3,10 @@
 //! equilibrium by the common Newton driver at every step. A step that fails is split in
 //! halves (bounded); line search did not help in a prototype, sub-stepping did.
 
-use super::frames::FrameBuilder;
+use super::frames::{non_finite, FrameBuilder};
 use super::{record_error, solve_error, Analysis, Settings, StaticEquilibrium};
 use crate::dynamics::Energy;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::model::{height, Model};
 use crate::record::{Recorder, Stage};
 use crate::solve::{bisect, newton, NewtonSettings, NewtonWorkspace, SolveError};
@@ -176,6 +176,16 @@ impl Analysis for Folding {
                 .map_err(solve_error("folding", Some(step), None, structure, &dofs))?;
             summary.newton_iterations += iterations;
             summary.cut_steps += usize::from(cut);
+            let energy = Energy {
+                external: fold.work,
+                ..Energy::default()
+            };
+            if let Some(what) = non_finite(&fold.problem.asm, None, &energy) {
+                return Err(Error::Stage {
+                    stage: "folding",
+                    reason: format!("step {step}: {what} is not finite"),
+                });
+            }
             record(&fold, step, recorder)?;
         }
         recorder.end_stage(Stage::Folding).map_err(record_error("folding"))?;

@@ -1,10 +1,10 @@
 //! A time-stepping stage (free vibration, deployment): Newmark from a given state under a
 //! nodal load, every converged step recorded, with the figures the checks need.
 
-use super::frames::FrameBuilder;
+use super::frames::{non_finite, FrameBuilder};
 use super::{record_error, solve_error, Analysis, Settings};
 use crate::dynamics::{Damping, DampingTangent, Integrator, Newmark, NewmarkParams, NodalLoad, Rayleigh};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::model::MemberKind;
 use crate::record::{Recorder, Stage};
 use crate::structure::{State, Structure};
@@ -133,6 +133,12 @@ impl Analysis for Transient {
                 .map_err(solve_error(name, Some(step), Some(time), structure, &dofs))?;
             // Re-anchor time to the step grid so that long runs do not drift.
             nm.time = time;
+            if let Some(what) = non_finite(&nm.asm, Some(&nm.v), &nm.energy) {
+                return Err(Error::Stage {
+                    stage: name,
+                    reason: format!("step {step} (t = {time:.4} s): {what} is not finite"),
+                });
+            }
             summary.newton_iterations += report.iterations;
             summary.factorizations += report.factorizations;
             summary.add_step(&nm, time, load_end, dt, &mut mechanical);
