@@ -424,3 +424,38 @@ fn an_unstable_structure_fails_at_substitution() {
         "{status}"
     );
 }
+
+/// A resume checks what it trusts: a truncated result.h5 and a deleted replay.mcap make
+/// their cases run again, the intact ones are skipped. And a second `tsim run` into a
+/// directory in use (its `.lock` names a live process on this host: this test's own) is
+/// refused with the holder named, writing nothing.
+#[test]
+fn resume_verifies_outputs_and_a_used_directory_is_locked() {
+    let out = scratch("verify");
+    let run = |extra: &[&str]| tsim(&[&["run", SWEEP, "--out", out.to_str().unwrap()], extra].concat());
+    assert!(run(&[]).status.success());
+    let dir = out.join("small");
+    let h5 = dir.join("cable-rubber_zeta-0.05/result.h5");
+    let len = std::fs::metadata(&h5).unwrap().len();
+    std::fs::OpenOptions::new().write(true).open(&h5).unwrap().set_len(len / 2).unwrap();
+    std::fs::remove_file(dir.join("cable-nylon_zeta-0.1/replay.mcap")).unwrap();
+    assert!(run(&[]).status.success());
+    let status: Vec<(String, String)> = outcomes(&out)
+        .iter()
+        .map(|o| (o["id"].as_str().unwrap().to_string(), o["status"].as_str().unwrap().to_string()))
+        .collect();
+    for (id, s) in &status {
+        let damaged = id == "cable-rubber_zeta-0.05" || id == "cable-nylon_zeta-0.1";
+        assert_eq!(s, if damaged { "complete" } else { "skipped (complete)" }, "{status:?}");
+    }
+
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap();
+    std::fs::write(dir.join(".lock"), format!("{} {}", host.trim(), std::process::id())).unwrap();
+    let before = std::fs::metadata(dir.join("summary.json")).unwrap().modified().unwrap();
+    let locked = run(&[]);
+    let err = String::from_utf8_lossy(&locked.stderr);
+    assert_eq!(locked.status.code(), Some(1), "{err}");
+    assert!(err.contains("in use") && err.contains(&std::process::id().to_string()), "{err}");
+    assert_eq!(std::fs::metadata(dir.join("summary.json")).unwrap().modified().unwrap(), before);
+    std::fs::remove_file(dir.join(".lock")).unwrap();
+}

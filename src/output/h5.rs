@@ -509,12 +509,20 @@ impl Dims {
 /// encoded here and written with `H5Dwrite_chunk`, filter mask 0: both of the dataset's
 /// filters applied.
 fn append_chunk(ds: &Dataset, start: usize, rows: usize, chunk: usize, values: &[f64], encoder: &mut ChunkEncoder) -> Result<(), Error> {
-    assert_eq!(start % chunk, 0, "blocks start on chunk boundaries");
     let mut shape = ds.shape();
+    let row: usize = shape[1..].iter().product();
+    // Not asserts: a file changed underneath (another run writing the same case, a full
+    // disk that failed a resize) must fail the case, not abort the process.
+    if start % chunk != 0 || values.len() != rows * row || shape[0] != start {
+        return Err(format!(
+            "{}: block of {} values at row {start} does not continue the dataset ({shape:?}); was the file changed by another process?",
+            ds.name(),
+            values.len()
+        )
+        .into());
+    }
     shape[0] = start + rows;
     ds.resize(shape.clone())?;
-    let row: usize = shape[1..].iter().product();
-    assert_eq!(values.len(), rows * row, "block size");
     if row == 0 {
         return Ok(());
     }

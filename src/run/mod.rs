@@ -2,6 +2,7 @@
 //! in parallel with rayon, each into its own directory, and a summary table collects them.
 //! The only place that knows about files, threads and progress display.
 
+mod files;
 mod progress;
 mod sweep;
 
@@ -62,6 +63,10 @@ pub struct CaseOutcome {
     /// With `outputs.figures`: "written" or why not.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub figures: Option<String>,
+    /// The output files of a complete case and their lengths [bytes]: a resume checks
+    /// them before it trusts the case.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub files: std::collections::BTreeMap<String, u64>,
 }
 
 impl CaseOutcome {
@@ -95,6 +100,7 @@ pub fn load(path: &Path) -> Result<(String, Vec<Case>), ConfigError> {
 pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec<CaseOutcome>> {
     let dir = opts.out.join(name);
     std::fs::create_dir_all(&dir)?;
+    let _lock = files::RunLock::acquire(&dir)?;
     let progress = Progress::new(cases.len(), opts.quiet);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(opts.jobs.max(1))
@@ -115,20 +121,28 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
 }
 
 /// A case is complete on disk when its `outcome.json` (written last, after the outputs
-/// are closed) says so and its `case.yaml` is the same resolved config.
+/// are closed) says so, its `case.yaml` is the same resolved config, and its output files
+/// are still the ones the outcome recorded (same lengths, format signatures intact). An
+/// outcome that lists no files (written by an earlier tsim) cannot be checked: rerun.
 fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
     let yaml = std::fs::read_to_string(dir.join("case.yaml")).ok()?;
     if yaml != case.yaml {
         return None;
     }
     let outcome: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("outcome.json")).ok()?).ok()?;
-    (outcome["status"] == "complete").then(|| CaseOutcome {
+    let recorded: std::collections::BTreeMap<String, u64> = serde_json::from_value(outcome["files"].clone()).ok()?;
+    let expected = usize::from(case.config.outputs.hdf5) + usize::from(case.config.outputs.mcap);
+    if outcome["status"] != "complete" || recorded.len() != expected || files::changed(dir, &recorded).is_some() {
+        return None;
+    }
+    Some(CaseOutcome {
         id: case.id.clone(),
         params: case.params.clone(),
         status: CaseStatus::Skipped,
         wall_seconds: outcome["wall_seconds"].as_f64().unwrap_or_default(),
         summary: serde_json::from_value(outcome["summary"].clone()).ok(),
         figures: outcome["figures"].as_str().map(str::to_string),
+        files: recorded,
     })
 }
 
@@ -147,19 +161,27 @@ fn run_one(case: &Case, dir: &Path, force: bool, background: bool, progress: &Pr
         Err(reason) => (CaseStatus::Failed(reason), None),
     };
     let figures = (case.config.outputs.figures && summary.is_some()).then(|| draw_figures(dir));
-    progress.done(&case.id, &status.to_string(), wall_seconds);
-    let outcome = CaseOutcome {
+    let mut outcome = CaseOutcome {
         id: case.id.clone(),
         params: case.params.clone(),
+        files: if summary.is_some() {
+            files::output_files(dir)
+        } else {
+            Default::default()
+        },
         status,
         wall_seconds,
         summary,
         figures,
     };
-    if let Ok(text) = serde_json::to_string_pretty(&outcome) {
-        // Written last: its presence with "complete" is what marks the case done.
-        let _ = std::fs::write(dir.join("outcome.json"), text);
+    // Written last, whole or not at all: its presence with "complete" marks the case done.
+    let written = serde_json::to_vec_pretty(&outcome)
+        .map_err(std::io::Error::other)
+        .and_then(|text| files::write_atomic(&dir.join("outcome.json"), &text));
+    if let Err(e) = written {
+        outcome.status = CaseStatus::Failed(format!("cannot write outcome.json: {e}"));
     }
+    progress.done(&case.id, &outcome.status.to_string(), wall_seconds);
     outcome
 }
 

@@ -325,11 +325,7 @@ pub fn write_summaries(dir: &Path, outcomes: &[CaseOutcome]) -> std::io::Result<
         );
         csv.push('\n');
     }
-    let write = |name: &str, text: &str| -> std::io::Result<()> {
-        let tmp = dir.join(format!(".{name}.tmp"));
-        std::fs::write(&tmp, text)?;
-        std::fs::rename(tmp, dir.join(name))
-    };
+    let write = |name: &str, text: &str| super::files::write_atomic(&dir.join(name), text.as_bytes());
     write("summary.csv", &csv)?;
     write(
         "summary.json",

@@ -1,0 +1,173 @@
+//! The run directory's small files and their safety: atomic writes, the lock that keeps a
+//! second `tsim run` out of a directory in use, and the check that a case's outputs are
+//! still what its outcome recorded before a resume trusts them.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Writes `bytes` to `path` so that a reader sees the old file or the whole new one, never
+/// a part, and the new one survives a crash once this returns: a temporary file beside it,
+/// flushed to disk, renamed over it, and the directory entry flushed.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let mut file = std::fs::File::create(&tmp)?;
+    file.write_all(bytes)?;
+    file.sync_all()?;
+    drop(file);
+    std::fs::rename(&tmp, path)?;
+    std::fs::File::open(dir)?.sync_all()
+}
+
+/// The output files a finished case wrote, with their lengths in bytes.
+pub fn output_files(dir: &Path) -> BTreeMap<String, u64> {
+    ["result.h5", "replay.mcap"]
+        .into_iter()
+        .filter_map(|name| Some((name.to_string(), std::fs::metadata(dir.join(name)).ok()?.len())))
+        .collect()
+}
+
+/// First bytes of an HDF5 file, and the last bytes of a finished MCAP file (its footer's
+/// closing magic).
+const HDF5_SIGNATURE: &[u8] = b"\x89HDF\r\n\x1a\n";
+const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+
+/// Why the outputs in `dir` are not the ones recorded in `files`, if they are not: a file
+/// missing, of another length, or without its format's signature (HDF5 header, MCAP
+/// closing magic).
+pub fn changed(dir: &Path, files: &BTreeMap<String, u64>) -> Option<String> {
+    for (name, &len) in files {
+        let path = dir.join(name);
+        let bytes = match std::fs::read(&path) {
+            Ok(b) => b,
+            Err(e) => return Some(format!("{name}: {e}")),
+        };
+        if bytes.len() as u64 != len {
+            return Some(format!("{name} is {} bytes, {len} when the case completed", bytes.len()));
+        }
+        let intact = match name.as_str() {
+            "result.h5" => bytes.starts_with(HDF5_SIGNATURE),
+            "replay.mcap" => bytes.ends_with(MCAP_MAGIC),
+            _ => true,
+        };
+        if !intact {
+            return Some(format!("{name} lacks its format's signature"));
+        }
+    }
+    None
+}
+
+/// A run directory held by this process: `.lock` names the host and process; dropped, it
+/// is removed. A second `tsim run` into the same directory stops with an error instead of
+/// writing the same files (which corrupted them, or hung on HDF5's file locks). A lock
+/// left by a process that no longer runs on this host is stale and taken over.
+pub struct RunLock {
+    path: PathBuf,
+}
+
+fn host() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .or_else(|_| std::fs::read_to_string("/etc/hostname"))
+        .map(|h| h.trim().to_string())
+        .unwrap_or_else(|_| "unknown".into())
+}
+
+impl RunLock {
+    pub fn acquire(dir: &Path) -> std::io::Result<RunLock> {
+        let path = dir.join(".lock");
+        let me = format!("{} {}", host(), std::process::id());
+        for _ in 0..2 {
+            match std::fs::OpenOptions::new().write(true).create_new(true).open(&path) {
+                Ok(mut file) => {
+                    file.write_all(me.as_bytes())?;
+                    file.sync_all()?;
+                    return Ok(RunLock { path });
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    let holder = std::fs::read_to_string(&path).unwrap_or_default();
+                    let mut parts = holder.split_whitespace();
+                    let (lock_host, pid) = (parts.next().unwrap_or(""), parts.next().unwrap_or(""));
+                    let alive = lock_host != host() || Path::new("/proc").join(pid).exists();
+                    if alive && !pid.is_empty() {
+                        return Err(std::io::Error::new(
+                            std::io::ErrorKind::WouldBlock,
+                            format!(
+                                "{} is in use by `tsim run` (process {pid} on host {lock_host}); wait for it, or remove {} if that process is gone",
+                                dir.display(),
+                                path.display()
+                            ),
+                        ));
+                    }
+                    // Stale: the process that took it has gone.
+                    std::fs::remove_file(&path)?;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        Err(std::io::Error::other(format!("cannot take {}", path.display())))
+    }
+}
+
+impl Drop for RunLock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("tsim-files-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn a_second_lock_is_refused_and_a_stale_one_taken_over() {
+        let dir = scratch("lock");
+        let first = RunLock::acquire(&dir).unwrap();
+        let err = RunLock::acquire(&dir).err().expect("a second lock while the first is held");
+        assert!(err.to_string().contains("in use"), "{err}");
+        drop(first);
+        assert!(!dir.join(".lock").exists());
+        // A lock of a process that is gone (pid 0 is never a user process) is stale.
+        std::fs::write(dir.join(".lock"), format!("{} 0", host())).unwrap();
+        let _taken = RunLock::acquire(&dir).unwrap();
+    }
+
+    #[test]
+    fn changed_outputs_are_found() {
+        let dir = scratch("verify");
+        let mut h5 = HDF5_SIGNATURE.to_vec();
+        h5.extend([0u8; 100]);
+        let mut mcap = vec![1u8; 50];
+        mcap.extend(MCAP_MAGIC);
+        std::fs::write(dir.join("result.h5"), &h5).unwrap();
+        std::fs::write(dir.join("replay.mcap"), &mcap).unwrap();
+        let files = output_files(&dir);
+        assert_eq!(files.len(), 2);
+        assert_eq!(changed(&dir, &files), None);
+        std::fs::write(dir.join("result.h5"), &h5[..50]).unwrap();
+        assert!(changed(&dir, &files).unwrap().contains("result.h5 is 50 bytes"));
+        std::fs::write(dir.join("result.h5"), &h5).unwrap();
+        std::fs::write(dir.join("replay.mcap"), vec![0u8; mcap.len()]).unwrap();
+        assert!(changed(&dir, &files).unwrap().contains("signature"));
+        std::fs::remove_file(dir.join("replay.mcap")).unwrap();
+        assert!(changed(&dir, &files).unwrap().starts_with("replay.mcap"));
+    }
+
+    #[test]
+    fn atomic_write_replaces_whole() {
+        let dir = scratch("atomic");
+        let path = dir.join("outcome.json");
+        write_atomic(&path, b"first").unwrap();
+        write_atomic(&path, b"second").unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"second");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "no temporary file left");
+    }
+}
