@@ -159,6 +159,19 @@ class Result:
         work = self.stage["deployment"]["external_work"][-1]
         return self.case["summary"]["deployment"]["max_balance_error"] / work
 
+    def first_time_above(self, ratio):
+        t, r = self.top_ratio("deployment")
+        return t[np.argmax(r >= ratio)]
+
+    def settling_time(self, fraction):
+        s = self.stage["deployment"]
+        ke = s["kinetic_energy"]
+        above = np.nonzero(ke > fraction * ke.max())[0]
+        return s["time"][above[-1] + 1]
+
+    def compressed_cables(self, stage):
+        return int((self.stage[stage]["member_force"][:, ~self.strut] < 0).sum(axis=1).max())
+
     def strut_forces(self, stage):
         return self.stage[stage]["member_force"][:, self.strut]
 
@@ -209,8 +222,22 @@ def launch_study(runner, base):
     return runner.run("launch", derive(base, "launch", fixed, axes))
 
 
+# The Δt study's variants of configs/paper.yaml's deployment: as shipped, with the paper-style
+# damping on the last converged tangent, and with a step launch (switching off inside a step).
+VARIANTS = {
+    "objective": {"deployment.damping_tangent": "objective"},
+    "last_converged": {"deployment.damping_tangent": "last_converged"},
+    "step_launch": {"deployment.load.profile": "step"},
+}
+VARIANT_TITLES = {
+    "objective": "`damping_tangent: objective`, half-sine launch (shipped)",
+    "last_converged": "`damping_tangent: last_converged` (the paper's βK_T(x_n)), half-sine launch",
+    "step_launch": "`damping_tangent: objective`, step launch (the same force and duration, `profile: step`)",
+}
+
+
 def dt_study(runner, base):
-    axes = [("damping", [(d.replace("_", "-"), {"deployment.damping_tangent": d}) for d in ("objective", "last_converged")]),
+    axes = [("variant", [(v.replace("_", "-"), sets) for v, sets in VARIANTS.items()]),
             ("dt", [(f"{dt * 1e3:g}ms", {"deployment.dt": dt}) for dt in CONVERGENCE_DTS])]
     return runner.run("dt", derive(base, "dt", {**EVERY_STEP, **SHORT_FREE_VIBRATION}, axes))
 
@@ -244,12 +271,12 @@ def spectrum_figure(rows, paper_a0):
 
 
 def dt_figure(results):
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
-    for ax, damping in zip(axes, ("objective", "last_converged")):
+    fig, axes = plt.subplots(1, len(VARIANTS), figsize=(15, 4.5), sharey=True)
+    for ax, damping in zip(axes, VARIANTS):
         for dt in CONVERGENCE_DTS:
             t, ratio = results[damping, dt].top_ratio("deployment")
             ax.plot(t, ratio, lw=1, label=f"Δt = {dt * 1e3:g} ms")
-        ax.set(xlabel="time [s]", title=f"damping_tangent: {damping}", xlim=(0, 4))
+        ax.set(xlabel="time [s]", title=damping.replace("_", " "), xlim=(0, 4))
         ax.legend()
     axes[0].set_ylabel("top-ring height / H")
     fig.tight_layout()
@@ -401,14 +428,23 @@ def launch_force(config):
     return float(re.search(r"force:\s*\[[^,]+,[^,]+,\s*([0-9.eE+-]+)\s*\]", deployment).group(1))
 
 
+def convergence_factor(series):
+    """Geometric mean of |d_k-1 / d_k| over successive differences d of each series."""
+    ratios = []
+    for vals in series:
+        d = np.diff(vals)
+        ratios += list(abs(d[:-1] / d[1:]))
+    return geometric_mean(ratios)
+
+
 def dt_section(results, shipped_dt):
     out = ["## 4. Convergence in Δt\n",
            "Deployment of configs/paper.yaml at Δt = 2, 1, 0.5, 0.25, 0.125 ms: top-ring height over H at "
            "0.5, 1 and 2 s and the largest strut force (absolute) over the 8 s; `d` is the difference to the "
            "next larger Δt, `ratio` the ratio of successive differences (4 per halving for a "
            "second-order method, 2 for first order).\n"]
-    verdict, ledger = {}, []
-    for damping in ("objective", "last_converged"):
+    verdict, ledger, order = {}, [], {}
+    for damping in VARIANTS:
         cols = {}
         for t in TIMES:
             cols[f"top({t:g} s)"] = [results[damping, dt].top_ratio("deployment", t) for dt in CONVERGENCE_DTS]
@@ -423,18 +459,24 @@ def dt_section(results, shipped_dt):
                 row += [f"{vals[k]:.6g}", f"{d:.2g}" if d is not None else "", ratio]
             rows.append(row)
         header = ["Δt [ms]"] + [h for name in cols for h in (name, "d", "ratio")]
-        out.append(f"\n`damping_tangent: {damping}`{' (shipped)' if damping == 'objective' else ' (the paper’s βK_T(x_n))'}:\n\n")
+        out.append(f"\n{VARIANT_TITLES[damping]}:\n\n")
         out.append(table(header, rows))
         k = CONVERGENCE_DTS.index(shipped_dt)
         quarter = CONVERGENCE_DTS.index(shipped_dt / 4)
         verdict[damping] = max(abs(cols[f"top({t:g} s)"][k] - cols[f"top({t:g} s)"][quarter]) for t in TIMES)
+        order[damping] = convergence_factor([cols[f"top({t:g} s)"] for t in TIMES])
         ledger.append([damping] + [f"{results[damping, dt].ledger_error:.2g}" for dt in CONVERGENCE_DTS])
     out.append(f"""
 The shipped Δt = {shipped_dt * 1e3:g} ms is within **{verdict['objective'] * 100:.2g} % H**
 of the Δt = {shipped_dt / 4 * 1e3:g} ms result at 0.5, 1 and 2 s (requirement: 1 % H;
 {'met' if verdict['objective'] < 0.01 else 'NOT met'}). With the paper-style damping on the last converged tangent,
 the same difference is {verdict['last_converged'] * 100:.2g} % H: a rigidly rotating strut gets an apparent axial
-rate from the lagged tangent, and β·EA/l0 turns it into spurious force, so the path depends on Δt.
+rate from the lagged tangent, and β·EA/l0 turns it into spurious force, so the path depends on Δt
+(`objective_damping_ignores_rigid_motion` in tests/pipeline.rs measures that force).
+
+Successive differences of the top-ring height shrink per halving of Δt by (geometric mean
+over the three times and the halvings): shipped **{order['objective']:.2f}**, step launch
+**{order['step_launch']:.2f}**, last_converged **{order['last_converged']:.2f}** (4 is second order, 2 first).
 
 The energy-ledger error over the launch work (largest drift of KE + SE + D − W, over W), by Δt:
 Table 3's Δt = 1 ms exceeds 1e-3 with the objective damping, which is why 0.5 ms is
@@ -442,7 +484,7 @@ shipped. The largest strut force converges last: it is set by the launch excitin
 strut axial modes (ω² ≈ 1e9, periods ≈ 0.2 ms), which no Δt here resolves (β damps
 them with ζ = βω/2 ≈ 80).
 
-{table(['damping_tangent'] + [f'Δt = {dt * 1e3:g} ms' for dt in CONVERGENCE_DTS], ledger)}
+{table(['variant'] + [f'Δt = {dt * 1e3:g} ms' for dt in CONVERGENCE_DTS], ledger)}
 ![Top-ring height against time for each Δt](img/validation/dt_convergence.png)
 """)
     return "".join(out)
@@ -470,6 +512,13 @@ def checks_section(paper):
         ("free vibration (3 s, undamped): ledger error, rise of mechanical energy",
          f"{s['free_vibration']['max_balance_error']:.2g} J, {s['free_vibration']['max_mechanical_rise']:.2g} J", "", ""),
         ("folding: top-ring height at step 10 / H", f"{s['folding']['height_ratio']:.3g}", "0 (flat)", ""),
+        ("deployment: first time the top ring reaches 0.9 H", f"{paper.first_time_above(0.9):.3g} s",
+         "paper: within about 3 s", ""),
+        ("deployment: time from which KE stays below 1e-3 of its maximum", f"{paper.settling_time(1e-3):.3g} s",
+         "paper: near zero within 3–6 s", ""),
+        ("cables in the compression branch (force < 0), most at once: folding / deployment",
+         f"{paper.compressed_cables('folding')} / {paper.compressed_cables('deployment')} of {(~paper.strut).sum()}",
+         "paper Fig 11: some grey", ""),
     ]
     return f"""## 5. Deployment checks (configs/paper.yaml)
 
@@ -527,12 +576,12 @@ ratio (Table 2, `eigen_spectrum.png`) and the first mode shapes (Fig. 4, `mode_s
 """
 
 
-def open_parameters(paper, paper_a0, force):
+def open_parameters(paper, paper_a0, force, default_gm):
     return f"""## 8. What the paper leaves open, and the values chosen
 
 | parameter | paper | chosen (configs/paper.yaml) | why |
 |---|---|---|---|
-| cable cross-section A0 | not given | {paper_a0:.2g} m² | the fit of §1: the soft modes' geometric mean within 2× of Table 2 (50 mm² leaves them 20× low) |
+| cable cross-section A0 | not given | {paper_a0:.2g} m² | the fit of §1: the soft modes' geometric mean within 2× of Table 2 (50 mm² leaves them {1 / default_gm:.0f}× low) |
 | cable layout | not given (20 nodes, 10 struts, 52 DOF) | 2-stage tower of 5-strut prisms, 40 cables: base and top rings, side cables per stage, two saddle and two vertical groups between the middle rings | a standard stable class-1 layout matching "base", "layer-connecting middle" and "topmost" nodes |
 | cable coefficients C | 0.8 for every cable | per cable group from the layout's self-stress, mean 0.8 | keeps Fig 2b's proportions (H = {paper.height:.2f} m); uniform 0.8 gives a tower a third as tall (§6) |
 | launch | "the specified launch load" on the middle and top nodes | {force:g} N per node upwards, half-sine, 0.05 s | the weakest that deploys at every Δt with its neighbours (§3); smooth for Newmark's second order |
@@ -571,7 +620,7 @@ def report(runner):
     (literal,) = runner.run("literal", derive(literal_text, "literal", {**NO_OUTPUTS, **SHORT_FREE_VIBRATION}))
     launch = launch_study(runner, base)
     dt_cases = dt_study(runner, base)
-    results = {(c["params"]["damping"].replace("-", "_"), float(c["params"]["dt"][:-2]) / 1e3): Result(c) for c in dt_cases}
+    results = {(c["params"]["variant"].replace("-", "_"), float(c["params"]["dt"][:-2]) / 1e3): Result(c) for c in dt_cases}
 
     spectrum_figure(rows, paper_a0)
     dt_figure(results)
@@ -591,7 +640,7 @@ rerun `scripts/validation` (a few minutes on 2 cores).
 {checks_section(paper)}
 {literal_section(literal, paper_case)}
 {FIGURES}
-{open_parameters(paper, paper_a0, force)}""")
+{open_parameters(paper, paper_a0, force, next(r["gm_soft"] for r in rows if r["a0"] == 50e-6))}""")
     print(f"wrote {DOC.relative_to(ROOT)} and {IMG.relative_to(ROOT)}/", file=sys.stderr)
 
 

@@ -636,7 +636,6 @@ struct PaperRun {
     cfg: CaseConfig,
     summary: CaseSummary,
     log: Vec<(Stage, f64, Energy)>,
-    deployment: Vec<Vec<Vector3<f64>>>,
 }
 
 impl PaperRun {
@@ -659,7 +658,6 @@ fn paper_run() -> &'static PaperRun {
             cfg,
             summary,
             log: log.frames,
-            deployment: log.deployment,
         }
     })
 }
