@@ -215,6 +215,16 @@ def fitted_a0(rows):
     return float(np.exp(-b / (2 * a)))
 
 
+def physical_masses(runner, base):
+    """The shipped config with physical masses: spectrum ratios and deployment shape error."""
+    (case,) = runner.run("physical", derive(base, "physical", {**NO_OUTPUTS, **SHORT_FREE_VIBRATION,
+                                                               "masses": "physical"}))
+    w2 = np.array(case["summary"]["eigen"]["omega2"])
+    return {"gm_soft": geometric_mean(w2[SOFT] / TABLE2[SOFT]),
+            "gm_stiff": geometric_mean(w2[STIFF] / TABLE2[STIFF]),
+            "shape_error": case["summary"]["deployment"]["shape_error"]}
+
+
 def launch_study(runner, base):
     axes = [("dt", [(f"{dt * 1e3:g}ms", {"deployment.dt": dt}) for dt in DTS]),
             ("f", [(f"{f:g}", {"deployment.load.force": [0.0, 0.0, f]}) for f in LAUNCH_FORCES])]
@@ -313,9 +323,11 @@ def spectrum_section(rows, paper_a0, fit, paper_case):
     return f"""## 1. Eigenvalues beside Table 2, and the cable cross-section A0
 
 The paper gives no cable cross-section A0. It sets the cables' axial stiffness
-A0·F′(λ)/l0 and mass, hence the 42 soft (cable) modes; the 10 strut modes (43–52) hardly
-depend on it. A0 is therefore fitted to Table 2: tsim's eigen analysis is run for
-{len(rows)} values of A0 from 1e-4 to 1e-2 m² (a geometric grid) and the squared log-ratio
+A0·F′(λ)/l0 and mass, hence the 42 soft (cable) modes; the 10 strut modes (43–52) depend
+on it far less (their geometric-mean ratio to Table 2 goes from {rows[0]['gm_stiff']:.2f} to {rows[-1]['gm_stiff']:.2f}
+over the scan, the soft modes' from {rows[0]['gm_soft']:.3f} to {rows[-1]['gm_soft']:.2f}). A0 is therefore fitted to
+Table 2: tsim's eigen analysis is run for {len(rows)} values of A0 from {rows[0]['a0']:.2g} to {rows[-1]['a0']:.2g} m²
+(a geometric grid from 1e-4 m², plus 50 mm² and the shipped value) and the squared log-ratio
 Σ ln²(ω²_tsim / ω²_Table2) over modes 1–42 is minimised (a parabola in ln A0 through the
 grid minimum refines it). The log-ratio weighs a factor 2 too high and too low alike and
 every mode equally, whatever its magnitude.
@@ -331,8 +343,8 @@ every mode equally, whatever its magnitude.
 - with tsim's library default A0 = 50 mm²: {default['gm_soft']:.3f} and {default['gm_stiff']:.3f}
   (the soft modes {1 / (default['omega2'][SOFT] / TABLE2[SOFT]).max():.1f}–{1 / (default['omega2'][SOFT] / TABLE2[SOFT]).min():.0f}× too low).
 
-The mode-by-mode ratios are not uniform (the layout of the paper's cables is unknown, and
-tsim's spectrum is more evenly spread than Table 2's): no single A0 matches every mode.
+The mode-by-mode ratios are not uniform (the paper's cable layout is unknown, so tsim's
+tower is not the paper's): no single A0 matches every mode.
 
 ![Table 2 and tsim's eigenvalues; the A0 fit](img/validation/spectrum.png)
 
@@ -545,13 +557,14 @@ def literal_section(literal, paper_case):
     ]
     return f"""## 6. Tables 1 and 3 read literally (configs/paper_literal.yaml)
 
-configs/paper_literal.yaml differs from configs/paper.yaml in three places: every cable
-C = 0.8 (Table 1), α = 1.612, β = 0.0052 as given (Table 3), and `damping_tangent:
-last_converged`. Until form-finding has a line search it also sets `newton: {{max_step: 100}}`
+configs/paper_literal.yaml differs from configs/paper.yaml in four places: every cable
+C = 0.8 (Table 1), α = 1.612, β = 0.0052 as given and Δt = 1 ms (Table 3), and
+`damping_tangent: last_converged`. Until form-finding has a line search it also sets `newton: {{max_step: 100}}`
 (the step-capped Newton does not converge with uniform C). Both run here:
 
 {table(['', 'paper_literal.yaml', 'paper.yaml'], rows)}
-Uniform C does form-find, to a stable tower about a third of the nominal height: with one
+Uniform C does form-find, to a tower {s['formfinding']['height'] / p['formfinding']['height']:.2f} of the nominal height, stable (its
+smallest ω² is {w2.min():.3g} > 0): with one
 C the ratios of cable force densities follow from the lengths alone (q = C l² for n = 3),
 not from the layout's self-stress, so the tower settles far from Fig 2b's proportions.
 """
@@ -576,7 +589,7 @@ ratio (Table 2, `eigen_spectrum.png`) and the first mode shapes (Fig. 4, `mode_s
 """
 
 
-def open_parameters(paper, paper_a0, force, default_gm):
+def open_parameters(paper, paper_a0, force, default_gm, physical):
     return f"""## 8. What the paper leaves open, and the values chosen
 
 | parameter | paper | chosen (configs/paper.yaml) | why |
@@ -587,7 +600,7 @@ def open_parameters(paper, paper_a0, force, default_gm):
 | launch | "the specified launch load" on the middle and top nodes | {force:g} N per node upwards, half-sine, 0.05 s | the weakest that deploys at every Δt with its neighbours (§3); smooth for Newmark's second order |
 | fold rule | top nodes "the full amount", middle nodes "half" | every top and middle node driven onto the base plane in 10 steps | the two middle rings of an overlapping tower are not at one level; driving each to the base plane is the "perfectly folded" flat state |
 | Ogden compression branch | F = −√(aλ + b) − c (eq 8), "smoothly connected by Lagrange interpolation" | junction λ = 1; value and slope continuous; slope at λ = 0 is 0.1× the slope at the junction | the paper's three coefficients need three conditions; the third (softening ratio) is tsim's choice (`law/ogden.rs`) |
-| masses | "specific gravity" 2.7 and 1 | `masses: paper`: 2.7 and 1 kg/m³ ({paper.mass_reading!s} in /model/mass), 1000× below physical | only this reading puts the strut modes at Table 2's ~1e9 (§1) and deploys within 8 s |
+| masses | "specific gravity" 2.7 and 1 | `masses: paper`: 2.7 and 1 kg/m³, 1000× below physical (result.h5: `/model/mass` attribute `mass_reading` = `{paper.mass_reading}`) | puts the strut modes at Table 2's ~1e9 (§1); with physical masses (the same config, `masses: physical`) their geometric-mean ratio to Table 2 is {physical['gm_stiff']:.2g}, the soft modes' {physical['gm_soft']:.2g}, and the shape error after 8 s of deployment {physical['shape_error']:.2g} |
 | damping form | C = αM + βK (eq 12) | αM + objective βK: β·dN/dl times each member's axial strain rate along its current direction | K_T of the last converged state damps rigid rotations and does not converge in Δt (§4); for small motions the two agree |
 | gravity | none mentioned | none | assumption: the paper's equations (11), (17) have no self-weight term |
 """
@@ -618,6 +631,7 @@ def report(runner):
     (paper_case,) = runner.run("paper", derive(base, "paper", EVERY_STEP))
     paper = Result(paper_case)
     (literal,) = runner.run("literal", derive(literal_text, "literal", {**NO_OUTPUTS, **SHORT_FREE_VIBRATION}))
+    physical = physical_masses(runner, base)
     launch = launch_study(runner, base)
     dt_cases = dt_study(runner, base)
     results = {(c["params"]["variant"].replace("-", "_"), float(c["params"]["dt"][:-2]) / 1e3): Result(c) for c in dt_cases}
@@ -640,7 +654,7 @@ rerun `scripts/validation` (a few minutes on 2 cores).
 {checks_section(paper)}
 {literal_section(literal, paper_case)}
 {FIGURES}
-{open_parameters(paper, paper_a0, force, next(r["gm_soft"] for r in rows if r["a0"] == 50e-6))}""")
+{open_parameters(paper, paper_a0, force, next(r["gm_soft"] for r in rows if r["a0"] == 50e-6), physical)}""")
     print(f"wrote {DOC.relative_to(ROOT)} and {IMG.relative_to(ROOT)}/", file=sys.stderr)
 
 
