@@ -59,6 +59,7 @@ fn main() -> Result<()> {
             model: &model,
             rest_lengths: &rest,
             masses: &masses,
+            mass_reading: "physical",
         })
     })?;
     each(&mut |r| {

@@ -48,7 +48,7 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     let (mut structure, equilibrium, found) = shape(cfg, &model, &settings, recorder)?;
     summary.substitution = SubstitutionSummary::new(&structure, &equilibrium)?;
     summary.substitution.require_stable(cfg.substitution.allow_unstable)?;
-    record_structure(recorder, &structure, &equilibrium, found.as_ref())?;
+    record_structure(recorder, &structure, &equilibrium, found.as_ref(), cfg.masses.as_str())?;
     summary.formfinding = found.map(|f| f.summary);
     // 3. Eigen analysis at the equilibrium, and the Rayleigh damping it gives.
     if let Some(eigen) = cfg.eigen_stage() {
@@ -107,11 +107,18 @@ fn shape(
 }
 
 /// The model record (real rest lengths and masses), then form-finding's.
-fn record_structure(recorder: &mut dyn Recorder, structure: &Structure, shape: &State, found: Option<&FormFound>) -> Result<()> {
+fn record_structure(
+    recorder: &mut dyn Recorder,
+    structure: &Structure,
+    shape: &State,
+    found: Option<&FormFound>,
+    mass_reading: &str,
+) -> Result<()> {
     let model = ModelRecord {
         model: &structure.model,
         rest_lengths: &structure.elements.rest,
         masses: &structure.masses,
+        mass_reading,
     };
     recorder.model(&model).map_err(|source| Error::Record { stage: "model", source })?;
     if let Some(f) = found {

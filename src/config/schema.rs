@@ -141,6 +141,14 @@ impl MassReading {
             MassReading::Paper => 1e-3,
         }
     }
+
+    /// The config spelling, recorded beside the masses in the outputs.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            MassReading::Physical => "physical",
+            MassReading::Paper => "paper",
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

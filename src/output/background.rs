@@ -422,6 +422,7 @@ mod tests {
             model: &model,
             rest_lengths: &[1.0; 12],
             masses: &[1.0; 6],
+            mass_reading: "physical",
         })
         .unwrap();
         bg.begin_stage(Stage::FreeVibration).unwrap();

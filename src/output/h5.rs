@@ -161,6 +161,8 @@ impl Recorder for Hdf5Recorder {
         g.var("member_kind", &["member"], &varlen(&kinds)?, "1", "member kind (strut or cable)")?;
         g.var("rest_length", &["member"], record.rest_lengths, "m", "real-material rest length")?;
         g.var("mass", &["node"], record.masses, "kg", "lumped nodal mass")?;
+        let mass = g.group.dataset("mass")?;
+        str_attr(&mass, "mass_reading", record.mass_reading)?;
         let support: Vec<u8> = model.nodes.iter().flat_map(|n| n.support.map(u8::from)).collect();
         g.var("support", &["node", "xyz"], &support, "1", "supported direction (1 = fixed)")?;
         let mut node_groups = vec![Vec::new(); model.node_count()];
@@ -595,6 +597,7 @@ pub(super) mod tests {
             model,
             rest_lengths: &vec![1.0; m],
             masses: &vec![2.0; n],
+            mass_reading: "paper",
         })?;
         let forces: Vec<f64> = model
             .members
@@ -682,6 +685,11 @@ pub(super) mod tests {
         );
         let (n, m) = (6, 12);
         assert_eq!(file.dataset("model/member_nodes").unwrap().shape(), vec![m, 2]);
+        let mass = file.dataset("model/mass").unwrap();
+        assert_eq!(
+            mass.attr("mass_reading").unwrap().read_scalar::<VarLenUnicode>().unwrap().as_str(),
+            "paper"
+        );
         assert_eq!(file.dataset("eigen/mode_shape").unwrap().shape(), vec![4, n, 3]);
         assert_eq!(
             file.group("eigen")
@@ -767,6 +775,7 @@ pub(super) mod tests {
             model: &model,
             rest_lengths: &[1.0; 12],
             masses: &[1.0; 6],
+            mass_reading: "physical",
         })
         .unwrap();
         rec.begin_stage(Stage::FreeVibration).unwrap();

@@ -577,6 +577,7 @@ mod tests {
             model: &model,
             rest_lengths: &[1.0; 12],
             masses: &[1.0; 6],
+            mass_reading: "physical",
         })
         .unwrap();
         // Struts, then side cables (the second below the slack threshold), then rings.

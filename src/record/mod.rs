@@ -59,6 +59,8 @@ pub struct ModelRecord<'a> {
     pub rest_lengths: &'a [f64],
     /// Lumped nodal masses [kg].
     pub masses: &'a [f64],
+    /// The config's `masses` reading they follow: `physical`, or `paper` (1000× lighter).
+    pub mass_reading: &'a str,
 }
 
 /// Results of form-finding.

@@ -2,9 +2,11 @@
 //! N = C (l − l0)^n, struts stiff and linear, cables soft and cubic.
 //!
 //! Table 1 gives every cable C = 0.8. One C for all cables fixes the ratios of cable
-//! force densities through the lengths alone (q = C l² for n = 3, l0 = 0), and for the
-//! tower layout that leaves no 3-D equilibrium (a prototype's Newton went flat). So C may
-//! be set per member group, and by default it is derived from the layout's self-stress:
+//! force densities through the lengths alone (q = C l² for n = 3, l0 = 0): for the tower
+//! layout it does form-find (with an uncapped Newton), but to a stable tower about a third
+//! of the nominal height, far from Fig 2b (configs/paper_literal.yaml). So C may be set
+//! per member group, and by default it is derived from the layout's self-stress, which
+//! keeps Fig 2b's proportions:
 //! at the nominal geometry, strut force densities are fixed at −1 and the cable group
 //! force densities q_g solve the equilibrium equations in the least-squares sense; then
 //! C_g = q_g / l_g² (l_g² the group's mean squared nominal length), scaled so the mean C
