@@ -374,7 +374,8 @@ fn duplicate_sweep_labels_are_rejected() {
 
 /// Values that would run forever, overflow the stack or find nothing are rejected before
 /// any work, each at its line: a step longer than its stage, a bisection deeper than 30
-/// halvings (it recurses once per halving), negative or zero measure coefficients.
+/// halvings (it recurses once per halving), negative or zero measure coefficients, a
+/// name that would leave `--out`.
 #[test]
 fn nonsense_values_are_rejected_at_their_lines() {
     let good = std::fs::read_to_string(SWEEP).unwrap();
@@ -386,7 +387,8 @@ fn nonsense_values_are_rejected_at_their_lines() {
             "formfinding: {}",
             "formfinding: { measure: { strut_ea: -1.0, cable_n: 0.0, cable_c: { uniform: 0.0 } } }",
         )
-        .replace("  duration: 0.1\n", "  duration: 0.1\n  dt: 0.5\n  max_cuts: 10000\n");
+        .replace("  duration: 0.1\n", "  duration: 0.1\n  dt: 0.5\n  max_cuts: 10000\n")
+        .replace("name: small", "name: ../escape");
     let (out, path) = bad_config(&text);
     let err = String::from_utf8_lossy(&out.stderr);
     let ff = at(&path, &text, "formfinding:");
@@ -396,6 +398,7 @@ fn nonsense_values_are_rejected_at_their_lines() {
         format!("{ff}: `formfinding.measure.cable_c.uniform`"),
         format!("{}: `deployment.dt`", at(&path, &text, "dt: 0.5")),
         format!("{}: `deployment.max_cuts`", at(&path, &text, "max_cuts: 10000")),
+        format!("{}: `name`", at(&path, &text, "name: ../escape")),
     ] {
         assert!(err.contains(&needle), "missing {needle} in\n{err}");
     }

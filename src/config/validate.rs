@@ -89,6 +89,7 @@ impl CaseConfig {
         if self.outputs.every == 0 {
             p.add("outputs.every", "is 0; must be ≥ 1");
         }
+        check_name(&self.name, &mut p);
         if p.0.is_empty() {
             Ok(())
         } else {
@@ -231,6 +232,22 @@ fn check_rayleigh(r: &RayleighSpec, model: Option<&Model>, p: &mut Problems) {
 fn check_ratios(ratios: &[f64; 2], p: &mut Problems) {
     for (k, z) in ratios.iter().enumerate() {
         p.within(&format!("eigen.rayleigh.ratios[{k}]"), *z, -1e-300, 1.0, "[0, 1)");
+    }
+}
+
+/// Longest case name: it names the run directory, and with case ids below it the paths
+/// stay well inside the 255-byte limit of a file name.
+const MAX_NAME: usize = 100;
+
+/// The name becomes a directory under `--out`: it must stay there (no `/`, no `..`, not
+/// empty) and be a portable file name.
+fn check_name(name: &str, p: &mut Problems) {
+    let safe = |c: char| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.');
+    if name.is_empty() || name.len() > MAX_NAME || !name.chars().all(safe) || name.starts_with('.') {
+        p.add(
+            "name",
+            format!("`{name}`: use 1–{MAX_NAME} letters, digits, `-`, `_` and `.`, not starting with `.` (it names the run directory under --out)"),
+        );
     }
 }
 
