@@ -1,11 +1,12 @@
 //! The `tsim` command line: parse, call the library, map outcomes to exit codes
-//! (0 every case complete, 1 a case failed, 2 a config or usage error).
+//! (0 every case complete, 1 a case failed, 2 a config or usage error, 130 interrupted by
+//! SIGINT or SIGTERM).
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tsim::config::ConfigError;
-use tsim::run::{default_jobs, load, run, RunOptions};
+use tsim::run::{default_jobs, install_interrupt, interrupted, load, run, RunOptions, EXIT_INTERRUPTED};
 
 #[derive(Parser)]
 #[command(
@@ -86,6 +87,9 @@ fn main() -> ExitCode {
                 force,
                 quiet,
             };
+            if let Err(e) = install_interrupt() {
+                eprintln!("warning: cannot handle SIGINT/SIGTERM ({e}); an interrupted run leaves its files marked running");
+            }
             match run(&name, &cases, &opts) {
                 Ok(outcomes) => {
                     let failed = outcomes.iter().filter(|o| o.failed()).count();
@@ -95,7 +99,10 @@ fn main() -> ExitCode {
                         failed,
                         opts.out.join(&name).display()
                     );
-                    if failed > 0 {
+                    if interrupted() {
+                        eprintln!("interrupted: cases not complete are marked `interrupted`; rerun to finish them");
+                        ExitCode::from(EXIT_INTERRUPTED)
+                    } else if failed > 0 {
                         ExitCode::from(1)
                     } else {
                         ExitCode::SUCCESS

@@ -462,3 +462,56 @@ fn resume_verifies_outputs_and_a_used_directory_is_locked() {
     assert_eq!(std::fs::metadata(dir.join("summary.json")).unwrap().modified().unwrap(), before);
     std::fs::remove_file(dir.join(".lock")).unwrap();
 }
+
+/// SIGINT and SIGTERM in the middle of a run: exit code 130, every case complete or
+/// marked `interrupted` (in the summary and in its result.h5, which opens as a finished
+/// file), and a rerun completes the sweep. A long deployment (400 s of the small prism,
+/// about a second per case, one case at a time, every 1000th step recorded) keeps the
+/// run busy when the signal comes 0.5 s in.
+#[test]
+fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good
+        .replace("deployment:\n  duration: 0.1", "deployment:\n  duration: 400.0")
+        .replace("sweep:", "outputs: { every: 1000 }\nsweep:");
+    assert_ne!(text, good);
+    for signal in ["-INT", "-TERM"] {
+        let dir = scratch(&format!("signal{signal}"));
+        let path = dir.join("long.yaml");
+        std::fs::write(&path, &text).unwrap();
+        let args = [
+            "run",
+            path.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+            "--jobs",
+            "1",
+            "--quiet",
+        ];
+        let mut child = Command::new(env!("CARGO_BIN_EXE_tsim")).args(args).spawn().unwrap();
+        std::thread::sleep(Duration::from_millis(500));
+        let killed = Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap();
+        assert!(killed.success());
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(130), "{signal}");
+        let o = outcomes(&dir);
+        assert_eq!(o.len(), 4);
+        assert!(o.iter().any(|c| c["status"] == "interrupted"), "{signal}: {o:?}");
+        for case in o.iter().filter(|c| c["status"] == "interrupted") {
+            let h5 = dir.join("small").join(case["id"].as_str().unwrap()).join("result.h5");
+            if h5.exists() {
+                let file = hdf5::File::open(&h5).unwrap();
+                let s: hdf5::types::FixedUnicode<512> = file.attr("status").unwrap().read_scalar().unwrap();
+                assert_eq!(s.as_str(), "interrupted", "{}", h5.display());
+            }
+        }
+        assert!(o.iter().all(|c| c["status"] == "complete" || c["status"] == "interrupted"), "{o:?}");
+        let again = tsim(&args);
+        assert!(again.status.success(), "{}", String::from_utf8_lossy(&again.stderr));
+        let o = outcomes(&dir);
+        assert!(
+            o.iter().all(|c| c["status"] == "complete" || c["status"] == "skipped (complete)"),
+            "{o:?}"
+        );
+    }
+}

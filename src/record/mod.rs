@@ -97,15 +97,18 @@ pub enum Outcome {
     Complete,
     /// The reason: a stage error, a panic, or a recording failure.
     Failed(String),
+    /// Stopped by a signal (SIGINT, SIGTERM) before the end.
+    Interrupted,
 }
 
 impl std::fmt::Display for Outcome {
-    /// "complete" or "failed: <reason>": the `status` strings of result.h5, replay.mcap
-    /// and outcome.json.
+    /// "complete", "failed: <reason>" or "interrupted": the `status` strings of
+    /// result.h5, replay.mcap and outcome.json.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Outcome::Complete => f.write_str("complete"),
             Outcome::Failed(reason) => write!(f, "failed: {reason}"),
+            Outcome::Interrupted => f.write_str("interrupted"),
         }
     }
 }

@@ -3,9 +3,11 @@
 //! The only place that knows about files, threads and progress display.
 
 mod files;
+mod interrupt;
 mod progress;
 mod sweep;
 
+pub use interrupt::{install as install_interrupt, interrupted, EXIT_INTERRUPTED};
 pub use progress::Progress;
 pub use sweep::{expand, Case};
 
@@ -33,6 +35,8 @@ pub enum CaseStatus {
     /// Complete from an earlier run with the same resolved config; not rerun.
     Skipped,
     Failed(String),
+    /// Stopped, or not started, because a signal asked the run to stop.
+    Interrupted,
 }
 
 impl std::fmt::Display for CaseStatus {
@@ -42,6 +46,7 @@ impl std::fmt::Display for CaseStatus {
             CaseStatus::Complete => f.write_str("complete"),
             CaseStatus::Skipped => f.write_str("skipped (complete)"),
             CaseStatus::Failed(reason) => write!(f, "failed: {reason}"),
+            CaseStatus::Interrupted => f.write_str("interrupted"),
         }
     }
 }
@@ -153,11 +158,24 @@ fn run_one(case: &Case, dir: &Path, force: bool, background: bool, progress: &Pr
             return done;
         }
     }
+    if interrupted() {
+        // Not started: its directory is left as an earlier run left it.
+        return CaseOutcome {
+            id: case.id.clone(),
+            params: case.params.clone(),
+            status: CaseStatus::Interrupted,
+            wall_seconds: 0.0,
+            summary: None,
+            figures: None,
+            files: Default::default(),
+        };
+    }
     let start = Instant::now();
     let result = execute(case, dir, background, progress);
     let wall_seconds = start.elapsed().as_secs_f64();
     let (status, summary) = match result {
         Ok(s) => (CaseStatus::Complete, Some(s)),
+        Err(_) if interrupted() => (CaseStatus::Interrupted, None),
         Err(reason) => (CaseStatus::Failed(reason), None),
     };
     let figures = (case.config.outputs.figures && summary.is_some()).then(|| draw_figures(dir));
@@ -214,7 +232,7 @@ fn execute(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Re
     std::fs::write(dir.join("case.yaml"), &case.yaml).map_err(|e| format!("cannot write case.yaml: {e}"))?;
     let files = crate::output::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml, background)
         .map_err(|e| format!("cannot create outputs: {e}"))?;
-    let mut recorder = Recorders(vec![Box::new(progress.case_bar(&case.id)), files]);
+    let mut recorder = Recorders(vec![Box::new(interrupt::Check), Box::new(progress.case_bar(&case.id)), files]);
     let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_case(&case.config, &mut recorder)));
     let result = match run {
         Ok(Ok(summary)) => Ok(summary),
@@ -230,6 +248,7 @@ fn execute(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Re
     };
     let outcome = match &result {
         Ok(_) => Outcome::Complete,
+        Err(_) if interrupted() => Outcome::Interrupted,
         Err(reason) => Outcome::Failed(reason.clone()),
     };
     recorder.finish(&outcome).map_err(|e| format!("cannot finish outputs: {e}"))?;
