@@ -40,10 +40,12 @@ impl Model {
         }
         let mut used = vec![false; self.nodes.len()];
         let mut pairs: HashMap<(usize, usize), &str> = HashMap::new();
+        // Once, not per member: the check stays linear in the model size.
+        let coincident = 1e-12 * self.size().max(1.0);
         for m in &self.members {
             let [a, b] = m.nodes;
             let (na, nb) = (&self.nodes[a], &self.nodes[b]);
-            if a == b || (na.xyz - nb.xyz).norm() <= 1e-12 * self.size().max(1.0) {
+            if a == b || (na.xyz - nb.xyz).norm() <= coincident {
                 return Err(ModelError::ZeroLength {
                     member: m.id.clone(),
                     a: na.id.clone(),
