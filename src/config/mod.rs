@@ -22,13 +22,44 @@ pub fn locate_line(text: &str, field: &str) -> Option<usize> {
 /// Parses one case configuration without the value checks of `validate`. `origin` names
 /// the file in errors.
 pub fn parse(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
-    serde_saphyr::from_str(text).map_err(|e| {
+    let cfg = serde_saphyr::from_str(text).map_err(|e| {
         let message = e.to_string();
         ConfigError::Syntax {
             file: origin.to_string(),
             // The CLI adds its own `error: `.
             message: message.strip_prefix("error: ").unwrap_or(&message).to_string(),
         }
+    })?;
+    match non_finite_literal(text) {
+        Some((line, literal)) => Err(ConfigError::Values(vec![ValueError {
+            file: origin.to_string(),
+            line: Some(line),
+            field: literal.to_string(),
+            message: "not a finite number: every value tsim reads must be finite".into(),
+        }])),
+        None => Ok(cfg),
+    }
+}
+
+/// The first YAML literal of a non-finite float (`.nan`, `.inf`, `-.Inf`, ...) outside
+/// quotes and comments, with its 1-based line. Caught here, where the line is known:
+/// further on a NaN would pass comparisons silently, or turn into a null in the sweep's
+/// JSON copy of the config.
+fn non_finite_literal(text: &str) -> Option<(usize, &str)> {
+    text.lines().enumerate().find_map(|(i, line)| {
+        let code = line.split(" #").next().unwrap_or(line);
+        let mut quoted = false;
+        code.split(|c: char| {
+            if c == '"' || c == '\'' {
+                quoted = !quoted;
+            }
+            quoted || matches!(c, ' ' | ',' | ':' | '[' | ']' | '{' | '}' | '"' | '\'')
+        })
+        .find(|t| {
+            let t = t.trim_start_matches(['-', '+']).to_ascii_lowercase();
+            t == ".nan" || t == ".inf"
+        })
+        .map(|t| (i + 1, t))
     })
 }
 

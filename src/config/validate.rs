@@ -2,6 +2,7 @@ use super::schema::*;
 use super::{LawSpec, MaterialSpec};
 use crate::model::generate::TowerSpec;
 use crate::model::Model;
+use crate::solve::NewtonSettings;
 use crate::stage::measure::{CableCoefficients, MeasureSpec};
 
 #[derive(Debug, thiserror::Error)]
@@ -90,6 +91,7 @@ impl CaseConfig {
             p.add("outputs.every", "is 0; must be ≥ 1");
         }
         check_name(&self.name, &mut p);
+        check_newton(&self.newton, &mut p);
         if p.0.is_empty() {
             Ok(())
         } else {
@@ -117,7 +119,14 @@ impl CaseConfig {
                 return None;
             }
         }
-        self.model.build().map_err(|e| p.add("model", e.to_string())).ok()
+        let model = self.model.build().map_err(|e| p.add("model", e.to_string())).ok()?;
+        if model.support_count() == 3 * model.node_count() {
+            p.add(
+                "model",
+                "every direction of every node is supported: nothing can move; free some directions",
+            );
+        }
+        Some(model)
     }
 
     fn check_materials(&self, p: &mut Problems) {
@@ -153,18 +162,33 @@ impl CaseConfig {
         }
         if self.model.tower.is_some() {
             p.add(
-                "formfinding",
-                "a generated tower needs form-finding (its nominal shape is not an equilibrium)",
+                "model.tower",
+                "a generated tower needs a `formfinding` section (its nominal shape is not an equilibrium)",
             );
         }
     }
 }
+
+/// Most nodes a model may have: checked before anything is allocated for it (a tower of
+/// 2³² struts asked for 481 GB). A million nodes is some 30 times the largest structure
+/// tsim has been measured on.
+pub const MAX_NODES: usize = 1_000_000;
 
 fn check_tower(t: &TowerSpec, p: &mut Problems) {
     if t.struts < 3 || t.stages < 1 {
         p.add(
             "model.tower",
             format!("struts = {}, stages = {}; need struts ≥ 3 and stages ≥ 1", t.struts, t.stages),
+        );
+    }
+    let nodes = t.struts.saturating_mul(t.stages).saturating_mul(2);
+    if nodes > MAX_NODES {
+        p.add(
+            "model.tower",
+            format!(
+                "struts × stages = {} × {} gives {nodes} nodes; at most {MAX_NODES} are allowed",
+                t.struts, t.stages
+            ),
         );
     }
     let before = p.0.len();
@@ -277,6 +301,32 @@ fn check_measure(m: &MeasureSpec, p: &mut Problems) {
     }
 }
 
+/// Most Newton iterations of one solve: converging Newton on these problems takes under
+/// 20; a cap in the billions with tolerance 0 made a run that never ends.
+const MAX_ITERATIONS: usize = 10_000;
+
+fn check_newton(n: &NewtonSettings, p: &mut Problems) {
+    if n.max_iterations == 0 || n.max_iterations > MAX_ITERATIONS {
+        p.add(
+            "newton.max_iterations",
+            format!("is {}; must lie in 1..={MAX_ITERATIONS}", n.max_iterations),
+        );
+    }
+    for (field, v) in [
+        ("newton.force_tolerance", n.force_tolerance),
+        ("newton.displacement_tolerance", n.displacement_tolerance),
+    ] {
+        if !(v >= 0.0 && v.is_finite()) {
+            p.add(field, format!("is {v}; must be a finite number ≥ 0"));
+        }
+    }
+    p.positive("newton.max_step", n.max_step);
+}
+
+/// Most time steps of one stage and static steps of folding: bounds the work and the
+/// output a config can ask for (the paper's deployment has 16 000).
+const MAX_STEPS: usize = 100_000_000;
+
 /// Most halvings of a failing step: 2^30 sub-steps is already far past any use, and the
 /// bisection recurses once per halving.
 const MAX_CUTS: u32 = 30;
@@ -293,6 +343,16 @@ fn check_cuts(field: &str, cuts: u32, p: &mut Problems) {
 fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option<&Model>, p: &mut Problems) {
     p.positive(&format!("{name}.dt"), t.dt);
     p.positive(&format!("{name}.duration"), t.duration);
+    let steps = t.duration / t.dt;
+    if steps > MAX_STEPS as f64 {
+        p.add(
+            format!("{name}.duration"),
+            format!(
+                "{:e} s at Δt = {:e} s is {steps:.3e} steps; at most {MAX_STEPS:.0e} are allowed in one stage",
+                t.duration, t.dt
+            ),
+        );
+    }
     if t.dt > t.duration {
         p.add(
             format!("{name}.dt"),
@@ -319,8 +379,8 @@ fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option
 }
 
 fn check_folding(f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
-    if f.steps == 0 {
-        p.add("folding.steps", "is 0; must be ≥ 1");
+    if f.steps == 0 || f.steps > MAX_STEPS {
+        p.add("folding.steps", format!("is {}; must lie in 1..={MAX_STEPS}", f.steps));
     }
     check_cuts("folding.max_cuts", f.max_cuts, p);
     let Some(model) = model else { return };

@@ -93,9 +93,15 @@ pub fn default_jobs() -> usize {
 /// Reads, expands and validates a config file: everything that can fail before work.
 pub fn load(path: &Path) -> Result<(String, Vec<Case>), ConfigError> {
     let origin = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Io {
+    let io = |message: String| ConfigError::Io {
         file: origin.clone(),
-        message: e.to_string(),
+        message,
+    };
+    let bytes = std::fs::read(path).map_err(|e| io(e.to_string()))?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let line = 1 + e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count();
+        io(format!("line {line}, byte {at}: not UTF-8 text; save the file as UTF-8"))
     })?;
     expand(&text, &origin)
 }

@@ -56,6 +56,10 @@ fn value_lines(text: &str, axis: &str, label: &str) -> Vec<usize> {
         .collect()
 }
 
+/// Most cases one sweep may expand to: each is a validated config held in memory before
+/// any runs (a sweep of 8 axes × 10 values asked for 79 GB).
+pub const MAX_CASES: usize = 100_000;
+
 /// Expands a config file's text into its cases; every case is validated, and every error
 /// of the file is reported (each distinct one once, with the first case it occurs in).
 pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigError> {
@@ -74,7 +78,15 @@ pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigErr
         message: e.to_string(),
     })?;
     let sweep = Sweep { text, origin, axes: &axes };
-    let total: usize = axes.iter().map(|a| a.values.len()).product();
+    let total = axes.iter().fold(1_usize, |n, a| n.saturating_mul(a.values.len()));
+    if total > MAX_CASES {
+        return Err(ConfigError::Values(vec![ValueError {
+            file: origin.into(),
+            line: config::locate_line(text, "sweep"),
+            field: "sweep.axes".into(),
+            message: format!("the axes' cross product has {total} cases; at most {MAX_CASES} are allowed in one run"),
+        }]));
+    }
     let mut cases = Vec::with_capacity(total);
     let mut seen = HashSet::new();
     for flat in 0..total {
