@@ -4,7 +4,8 @@
 //! punctuation — and each mutant goes through sweep expansion and validation, which
 //! builds every case's model. No mutant may panic, and every rejection must say where:
 //! a line (`file:N:` or the parser's `line N`). A bounded run here (3000 mutants, a few
-//! seconds); `TSIM_MUTANTS=N` runs more.
+//! seconds); `TSIM_MUTANTS=N` runs more, and `TSIM_MUTANTS_DIR=dir` also writes the
+//! accepted mutants there, for a campaign of runs.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use tsim::config::ConfigError;
@@ -148,7 +149,12 @@ fn mutated_configs_never_panic_and_every_rejection_has_a_line() {
         let result = catch_unwind(AssertUnwindSafe(|| expand(&text, origin)));
         match result {
             Err(_) => panic!("mutant {k} of {origin} panicked:\n{text}"),
-            Ok(Ok(_)) => accepted += 1,
+            Ok(Ok(_)) => {
+                accepted += 1;
+                if let Ok(dir) = std::env::var("TSIM_MUTANTS_DIR") {
+                    std::fs::write(format!("{dir}/mutant{k:06}.yaml"), &text).unwrap();
+                }
+            }
             Ok(Err(e)) => {
                 rejected += 1;
                 if !located(&e) && unlocated.len() < 5 {
