@@ -62,7 +62,9 @@ pub fn changed(dir: &Path, files: &BTreeMap<String, u64>) -> Option<String> {
 /// A run directory held by this process: `.lock` names the host and process; dropped, it
 /// is removed. A second `tsim run` into the same directory stops with an error instead of
 /// writing the same files (which corrupted them, or hung on HDF5's file locks). A lock
-/// left by a process that no longer runs on this host is stale and taken over.
+/// left by a process that no longer runs on this host is stale and taken over (two runs
+/// that find the same stale lock at the same instant could both take it over; that needs
+/// a crashed run and two new ones started within microseconds).
 pub struct RunLock {
     path: PathBuf,
 }
@@ -78,19 +80,23 @@ impl RunLock {
     pub fn acquire(dir: &Path) -> std::io::Result<RunLock> {
         let path = dir.join(".lock");
         let me = format!("{} {}", host(), std::process::id());
-        for _ in 0..2 {
-            match std::fs::OpenOptions::new().write(true).create_new(true).open(&path) {
-                Ok(mut file) => {
-                    file.write_all(me.as_bytes())?;
-                    file.sync_all()?;
-                    return Ok(RunLock { path });
-                }
+        // The lock appears whole or not at all: written to a file of this process, then
+        // hard-linked to `.lock`, which fails if `.lock` exists (atomic, even on NFS). A
+        // lock created empty and filled afterwards was read as stale by a second run
+        // started at the same moment, and both ran.
+        let mine = dir.join(format!(".lock.{}", std::process::id()));
+        write_atomic(&mine, me.as_bytes())?;
+        let taken = (0..2).try_fold(None, |taken: Option<RunLock>, _| {
+            if taken.is_some() {
+                return Ok(taken);
+            }
+            match std::fs::hard_link(&mine, &path) {
+                Ok(()) => Ok(Some(RunLock { path: path.clone() })),
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
                     let holder = std::fs::read_to_string(&path).unwrap_or_default();
                     let mut parts = holder.split_whitespace();
                     let (lock_host, pid) = (parts.next().unwrap_or(""), parts.next().unwrap_or(""));
-                    let alive = lock_host != host() || Path::new("/proc").join(pid).exists();
-                    if alive && !pid.is_empty() {
+                    if lock_host != host() || pid.is_empty() || Path::new("/proc").join(pid).exists() {
                         return Err(std::io::Error::new(
                             std::io::ErrorKind::WouldBlock,
                             format!(
@@ -102,11 +108,13 @@ impl RunLock {
                     }
                     // Stale: the process that took it has gone.
                     std::fs::remove_file(&path)?;
+                    Ok(None)
                 }
-                Err(e) => return Err(e),
+                Err(e) => Err(e),
             }
-        }
-        Err(std::io::Error::other(format!("cannot take {}", path.display())))
+        });
+        let _ = std::fs::remove_file(&mine);
+        taken?.ok_or_else(|| std::io::Error::other(format!("cannot take {}", path.display())))
     }
 }
 
