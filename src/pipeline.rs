@@ -92,7 +92,7 @@ fn shape(
     recorder: &mut dyn Recorder,
 ) -> Result<(Structure, State, Option<FormFound>)> {
     let start = State::at_rest(model.positions());
-    let materials = cfg.materials(model);
+    let materials = cfg.materials(model)?;
     let Some(ff) = &cfg.formfinding else {
         let structure = materials.structure(model, cfg.rest_lengths());
         let (equilibrium, _) = SelfEquilibrium::GIVEN.run(&structure, start, settings, recorder)?;

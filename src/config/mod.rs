@@ -47,7 +47,11 @@ pub fn parse(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
 /// JSON copy of the config.
 fn non_finite_literal(text: &str) -> Option<(usize, &str)> {
     text.lines().enumerate().find_map(|(i, line)| {
-        let code = line.split(" #").next().unwrap_or(line);
+        // A comment starts at a `#` that opens the line or follows a space.
+        let code = match line.trim_start().starts_with('#') {
+            true => "",
+            false => line.split(" #").next().unwrap_or(line),
+        };
         let mut quoted = false;
         code.split(|c: char| {
             if c == '"' || c == '\'' {
@@ -84,4 +88,19 @@ pub fn locate_errors(origin: &str, text: &str, errors: Vec<FieldError>) -> Vec<V
         .collect();
     located.sort_by_key(|e| e.line);
     located
+}
+
+#[cfg(test)]
+mod tests {
+    use super::non_finite_literal;
+
+    /// Literals are found in values, with their line; comments and quoted strings that
+    /// mention them are not values.
+    #[test]
+    fn non_finite_literals_are_values_only() {
+        assert_eq!(non_finite_literal("a: 1\nb: [0, -.Inf]\n"), Some((2, "-.Inf")));
+        assert_eq!(non_finite_literal("c: { d: .nan }"), Some((1, ".nan")));
+        assert_eq!(non_finite_literal("# .nan in a comment\na: 1 # or .inf here\n"), None);
+        assert_eq!(non_finite_literal("source: \"a .inf of text\"\nname: '.nan'\n"), None);
+    }
 }

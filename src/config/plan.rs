@@ -4,7 +4,7 @@
 
 use super::schema::{CaseConfig, FoldTarget, LoadSpec, RayleighSpec, TransientSpec};
 use crate::dynamics::{NodalLoad, Rayleigh};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::model::{MemberKind, Model};
 use crate::record::Stage;
 use crate::stage::eigen::{DampingFrom, Eigen};
@@ -23,10 +23,17 @@ impl CaseConfig {
     }
 
     /// The real law and linear density of every member: the strut material for struts,
-    /// the cable material for cables.
-    pub fn materials(&self, model: &Model) -> Materials {
+    /// the cable material for cables. An unknown name is an error here too, for a config
+    /// built in code that `validate` has not seen.
+    pub fn materials(&self, model: &Model) -> Result<Materials> {
         let lib = self.material_library();
-        let [strut, cable] = [&self.substitution.strut, &self.substitution.cable].map(|name| &lib[name]);
+        let find = |name: &String| {
+            lib.get(name).ok_or_else(|| Error::Stage {
+                stage: "substitution",
+                reason: format!("unknown material `{name}`"),
+            })
+        };
+        let (strut, cable) = (find(&self.substitution.strut)?, find(&self.substitution.cable)?);
         let [strut_law, cable_law] = [strut, cable].map(|m| m.law());
         let factor = self.masses.factor();
         let (laws, linear_density) = model
@@ -37,7 +44,7 @@ impl CaseConfig {
                 MemberKind::Cable => (cable_law.clone(), cable.density * factor * cable.area),
             })
             .unzip();
-        Materials { laws, linear_density }
+        Ok(Materials { laws, linear_density })
     }
 
     /// The rest lengths given with the members (a model without form-finding).
