@@ -20,6 +20,12 @@ pub struct Structure {
     pub masses: Vec<f64>,
     /// Rayleigh damping C = αM + βK, set by the eigen stage (zero until then).
     pub damping: Rayleigh,
+    /// Acceleration of gravity [m/s²]: the weight m g of every node's mass is a load in
+    /// every stage (zero for none).
+    pub gravity: Vector3<f64>,
+    /// Nodal loads that stay on once the static stage has applied them [N per node];
+    /// empty for none.
+    pub dead_load: Vec<Vector3<f64>>,
 }
 
 impl Structure {
@@ -30,19 +36,29 @@ impl Structure {
             elements,
             masses: Vec::new(),
             damping: Rayleigh::default(),
+            gravity: Vector3::zeros(),
+            dead_load: Vec::new(),
         }
     }
 
     /// Masses lumped from the members: `linear_density[m]` [kg/m] × rest length, half to
-    /// each end.
-    pub fn with_lumped_masses(model: Model, elements: Elements, linear_density: &[f64]) -> Self {
-        let masses = lumped_masses(&model, &elements.rest, linear_density);
+    /// each end, plus the `point_masses` of each node [kg].
+    pub fn with_lumped_masses(model: Model, elements: Elements, linear_density: &[f64], point_masses: &[f64]) -> Self {
+        let mut masses = lumped_masses(&model, &elements.rest, linear_density);
+        masses.iter_mut().zip(point_masses).for_each(|(m, p)| *m += p);
         Structure {
-            model,
-            elements,
             masses,
-            damping: Rayleigh::default(),
+            ..Structure::massless(model, elements)
         }
+    }
+
+    /// The constant load on every node: the dead loads and the weight m g [N].
+    pub fn constant_load(&self) -> Vec<Vector3<f64>> {
+        let mut f = vec![Vector3::zeros(); self.model.node_count()];
+        for (n, fi) in f.iter_mut().enumerate() {
+            *fi = self.masses.get(n).map_or(Vector3::zeros(), |&m| self.gravity * m) + self.dead_load.get(n).copied().unwrap_or_default();
+        }
+        f
     }
 
     /// Lumped mass on each free DOF of `dofs`.

@@ -4,12 +4,14 @@
 //! field and the range, and all of them are reported, each at its line.
 
 mod build;
+mod loading;
 mod locate;
 mod materials;
 mod plan;
 mod schema;
 mod validate;
 
+pub use loading::*;
 pub use materials::{library, LawSpec, MaterialSpec};
 pub use schema::*;
 pub use validate::{ConfigError, FieldError, ValueError};

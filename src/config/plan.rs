@@ -12,7 +12,9 @@ use crate::stage::fold::{Folding, Prescription, Target};
 use crate::stage::substitute::Materials;
 use crate::stage::transient::Transient;
 use crate::stage::Settings;
+use crate::law::ForceLaw;
 use nalgebra::Vector3;
+use std::sync::Arc;
 
 impl CaseConfig {
     pub fn settings(&self) -> Settings {
@@ -22,29 +24,58 @@ impl CaseConfig {
         }
     }
 
-    /// The real law and linear density of every member: the strut material for struts,
-    /// the cable material for cables. An unknown name is an error here too, for a config
-    /// built in code that `validate` has not seen.
+    /// The real law and linear density of every member (the strut material for struts,
+    /// the cable material for cables, then `substitution.assign` in order) and the point
+    /// masses of every node. An unknown name is an error here too, for a config built in
+    /// code that `validate` has not seen.
     pub fn materials(&self, model: &Model) -> Result<Materials> {
         let lib = self.material_library();
-        let find = |name: &String| {
-            lib.get(name).ok_or_else(|| Error::Stage {
-                stage: "substitution",
-                reason: format!("unknown material `{name}`"),
-            })
+        let stage_error = |reason: String| Error::Stage {
+            stage: "substitution",
+            reason,
         };
-        let (strut, cable) = (find(&self.substitution.strut)?, find(&self.substitution.cable)?);
-        let [strut_law, cable_law] = [strut, cable].map(|m| m.law());
+        let find = |name: &String| lib.get(name).ok_or_else(|| stage_error(format!("unknown material `{name}`")));
         let factor = self.masses.factor();
-        let (laws, linear_density) = model
-            .members
-            .iter()
-            .map(|m| match m.kind {
-                MemberKind::Strut => (strut_law.clone(), strut.density * factor * strut.area),
-                MemberKind::Cable => (cable_law.clone(), cable.density * factor * cable.area),
-            })
-            .unzip();
-        Ok(Materials { laws, linear_density })
+        // One (law, linear density) per distinct material; members index into them, so a
+        // large model shares its laws.
+        let by_kind = [find(&self.substitution.strut)?, find(&self.substitution.cable)?].map(|m| (m.law(), m.density * factor * m.area));
+        let mut table: Vec<(Arc<dyn ForceLaw>, f64)> = by_kind.to_vec();
+        let mut chosen: Vec<usize> = model.members.iter().map(|m| usize::from(m.kind == MemberKind::Cable)).collect();
+        for (k, a) in self.substitution.assign.iter().enumerate() {
+            let mut spec = match (&a.material, &a.define) {
+                (Some(name), None) => find(name)?.clone(),
+                (None, Some(spec)) => spec.clone(),
+                _ => return Err(stage_error(format!("`substitution.assign[{k}]`: give `material` or `define`, one of them"))),
+            };
+            if let Some(area) = a.area {
+                spec.area = area;
+            }
+            let density = if a.massless { 0.0 } else { spec.density * factor * spec.area };
+            table.push((spec.law(), density));
+            for m in model.member_set(&a.members, &a.groups)? {
+                chosen[m] = table.len() - 1;
+            }
+        }
+        let (laws, linear_density) = chosen.iter().map(|&i| table[i].clone()).unzip();
+        Ok(Materials {
+            laws,
+            linear_density,
+            point_masses: self.point_masses(model)?,
+        })
+    }
+
+    /// The point mass of every node [kg] (empty without `point_masses`).
+    fn point_masses(&self, model: &Model) -> Result<Vec<f64>> {
+        if self.point_masses.is_empty() {
+            return Ok(Vec::new());
+        }
+        let mut m = vec![0.0; model.node_count()];
+        for p in &self.point_masses {
+            for n in model.node_set(&p.nodes, &p.groups)? {
+                m[n] += p.mass;
+            }
+        }
+        Ok(m)
     }
 
     /// The rest lengths given with the members (a model without form-finding).
@@ -54,9 +85,10 @@ impl CaseConfig {
 
     pub fn eigen_stage(&self) -> Option<Eigen> {
         let damping = match self.eigen.as_ref()?.rayleigh {
-            RayleighSpec::Given { alpha, beta } => DampingFrom::Given(Rayleigh { alpha, beta }),
-            RayleighSpec::Modes { modes, ratios } => DampingFrom::Modes { modes, ratios },
-            RayleighSpec::AutoModes { axis, ratios } => DampingFrom::AutoModes {
+            None => DampingFrom::None,
+            Some(RayleighSpec::Given { alpha, beta }) => DampingFrom::Given(Rayleigh { alpha, beta }),
+            Some(RayleighSpec::Modes { modes, ratios }) => DampingFrom::Modes { modes, ratios },
+            Some(RayleighSpec::AutoModes { axis, ratios }) => DampingFrom::AutoModes {
                 axis: axis.index(),
                 ratios,
             },

@@ -1,3 +1,4 @@
+use super::loading::{AssignSpec, GroundMotionSpec, InitialSpec, NodalForceSpec, PointMassSpec, StaticSpec};
 use super::materials::MaterialSpec;
 use crate::dynamics::{DampingTangent, LoadProfile, NewmarkParams};
 use crate::model::generate::TowerSpec;
@@ -23,6 +24,17 @@ pub struct CaseConfig {
     pub substitution: SubstitutionSpec,
     #[serde(default)]
     pub masses: MassReading,
+    /// Point masses added to the members' lumped masses.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub point_masses: Vec<PointMassSpec>,
+    /// Acceleration of gravity g [m/s²], acting on the lumped masses in every stage after
+    /// substitution (form-finding finds a self-equilibrium, without gravity).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity: Option<[f64; 3]>,
+    /// Static loads (and gravity) applied after substitution in load steps; with gravity
+    /// and no `static` section, gravity alone is applied with its defaults.
+    #[serde(rename = "static", default, skip_serializing_if = "Option::is_none")]
+    pub statics: Option<StaticSpec>,
     #[serde(default)]
     pub eigen: Option<EigenSpec>,
     #[serde(default)]
@@ -116,6 +128,9 @@ pub struct SubstitutionSpec {
     /// Left out of the resolved config when false, so that earlier case.yaml files match.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub allow_unstable: bool,
+    /// Materials per member group or member, overriding `strut` and `cable`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub assign: Vec<AssignSpec>,
 }
 
 fn one() -> f64 {
@@ -154,7 +169,9 @@ impl MassReading {
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EigenSpec {
-    pub rayleigh: RayleighSpec,
+    /// Rayleigh damping for the damped transients; absent: eigen analysis only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rayleigh: Option<RayleighSpec>,
 }
 
 /// Rayleigh damping: `alpha` and `beta` given, or from two modes (`modes`, 1-based, or
@@ -301,8 +318,16 @@ pub struct TransientSpec {
     pub damped: bool,
     #[serde(default)]
     pub damping_tangent: DampingTangent,
+    /// The paper's launch load (one force on node groups, step or half-sine).
     #[serde(default)]
     pub load: Option<LoadSpec>,
+    /// Nodal loads with time functions, any number, besides `load` (and gravity).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub loads: Vec<NodalForceSpec>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground_motion: Option<GroundMotionSpec>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial: Option<InitialSpec>,
     /// Halvings of a step whose Newton solve fails.
     #[serde(default = "default_cuts")]
     pub max_cuts: u32,
@@ -348,6 +373,9 @@ pub struct FoldSpec {
     #[serde(default = "six")]
     pub max_cuts: u32,
     pub prescribe: Vec<PrescribeSpec>,
+    /// The lowest this many eigenvalues (and the lowest mode) at every folding step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eigen: Option<usize>,
 }
 
 /// One group's prescribed direction, moved to `target`.

@@ -73,12 +73,12 @@ impl CaseConfig {
         let model = self.check_model(&mut p);
         self.check_materials(&mut p);
         self.check_shape(&mut p);
-        if let Some(e) = &self.eigen {
-            check_rayleigh(&e.rayleigh, model.as_ref(), &mut p);
+        if let Some(r) = self.eigen.as_ref().and_then(|e| e.rayleigh.as_ref()) {
+            check_rayleigh(r, model.as_ref(), &mut p);
         }
         for (name, t) in [("free_vibration", &self.free_vibration), ("deployment", &self.deployment)] {
             if let Some(t) = t {
-                check_transient(name, t, self.eigen.is_some(), model.as_ref(), &mut p);
+                check_transient(name, t, self.eigen.as_ref().is_some_and(|e| e.rayleigh.is_some()), model.as_ref(), &mut p);
             }
         }
         if let Some(f) = &self.folding {
@@ -366,7 +366,7 @@ fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option
     p.within(&format!("{name}.newmark_gamma"), t.newmark_gamma, 0.0, 1.0, "(0, 1)");
     p.within(&format!("{name}.newmark_beta"), t.newmark_beta, 0.0, 0.5 + 1e-12, "(0, 0.5]");
     if t.damped && !has_eigen {
-        p.add(format!("{name}.damped"), "Rayleigh damping needs the `eigen` section");
+        p.add(format!("{name}.damped"), "Rayleigh damping needs `eigen.rayleigh`");
     }
     if let Some(l) = &t.load {
         p.positive(&format!("{name}.load.duration"), l.duration);

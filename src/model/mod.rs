@@ -84,6 +84,53 @@ impl Model {
             })
     }
 
+    /// The nodes named by id or by node group, each once, in index order; an empty set
+    /// is an error (a load or mass on nothing is a mistake).
+    pub fn node_set(&self, ids: &[String], groups: &[String]) -> Result<Vec<usize>, ModelError> {
+        let mut set = Vec::new();
+        for id in ids {
+            let n = self.nodes.iter().position(|n| &n.id == id);
+            set.push(n.ok_or_else(|| ModelError::UnknownNodeId { node: id.clone() })?);
+        }
+        for g in groups {
+            set.extend_from_slice(self.group(g)?);
+        }
+        set.sort_unstable();
+        set.dedup();
+        if set.is_empty() {
+            return Err(ModelError::EmptyNodeSet);
+        }
+        Ok(set)
+    }
+
+    /// The members named by id or by member group, each once, in index order.
+    pub fn member_set(&self, ids: &[String], groups: &[String]) -> Result<Vec<usize>, ModelError> {
+        let mut set = Vec::new();
+        for id in ids {
+            let m = self.members.iter().position(|m| &m.id == id);
+            set.push(m.ok_or_else(|| ModelError::UnknownMember { member: id.clone() })?);
+        }
+        for g in groups {
+            let before = set.len();
+            set.extend((0..self.members.len()).filter(|&k| self.members[k].groups.contains(g)));
+            if set.len() == before {
+                let mut known: Vec<&str> = self.members.iter().flat_map(|m| m.groups.iter().map(String::as_str)).collect();
+                known.sort_unstable();
+                known.dedup();
+                return Err(ModelError::UnknownMemberGroup {
+                    group: g.clone(),
+                    known: known.join(", "),
+                });
+            }
+        }
+        set.sort_unstable();
+        set.dedup();
+        if set.is_empty() {
+            return Err(ModelError::EmptyMemberSet);
+        }
+        Ok(set)
+    }
+
     /// Largest distance between two nodes' bounding-box corners: the model's length scale.
     pub fn size(&self) -> f64 {
         let mut lo = Vector3::repeat(f64::INFINITY);

@@ -25,6 +25,16 @@ pub enum ModelError {
     UnknownGroupNode { group: String, node: String },
     #[error("unknown node group `{group}`; the model has: {known}")]
     UnknownGroup { group: String, known: String },
+    #[error("unknown node `{node}`; use a node id of `model.nodes` (or a group with `groups`)")]
+    UnknownNodeId { node: String },
+    #[error("unknown member `{member}`; use a member id of `model.members` (or a member group with `groups`)")]
+    UnknownMember { member: String },
+    #[error("unknown member group `{group}`; the model's member groups: {known}")]
+    UnknownMemberGroup { group: String, known: String },
+    #[error("names no node: give `nodes` (node ids) or `groups` (node groups)")]
+    EmptyNodeSet,
+    #[error("names no member: give `members` (member ids) or `groups` (member groups)")]
+    EmptyMemberSet,
     #[error("the supports leave rigid-body motion free ({motion}); support more directions, e.g. fix x and y of one base node and one more in-plane direction of another")]
     RigidBodyFree { motion: String },
 }

@@ -16,6 +16,8 @@ use nalgebra::Vector3;
 /// Where Rayleigh damping comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DampingFrom {
+    /// No damping: the eigen analysis on its own.
+    None,
     /// α, β given.
     Given(Rayleigh),
     /// Damping ratios at two modes (1-based), eqs 13–14.
@@ -63,6 +65,7 @@ impl Analysis for Eigen {
         let mass = structure.free_masses(&dofs);
         let m = modes(&tangent_matrix(&asm), &mass, &dofs, model)?;
         let (rayleigh, chosen, ratios) = match self.damping {
+            DampingFrom::None => (Rayleigh::default(), vec![], vec![]),
             DampingFrom::Given(r) => (r, vec![], vec![]),
             DampingFrom::Modes { modes, ratios } => (m.rayleigh(modes, ratios), modes.to_vec(), ratios.to_vec()),
             DampingFrom::AutoModes { axis, ratios } => {

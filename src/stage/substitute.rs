@@ -19,6 +19,8 @@ pub struct Materials {
     pub laws: Vec<Arc<dyn ForceLaw>>,
     /// Mass per unit rest length [kg/m] (density × area, in the chosen mass reading).
     pub linear_density: Vec<f64>,
+    /// Point mass of every node [kg] (empty: none).
+    pub point_masses: Vec<f64>,
 }
 
 impl Materials {
@@ -28,7 +30,7 @@ impl Materials {
             laws: self.laws.clone(),
             rest,
         };
-        Structure::with_lumped_masses(model.clone(), elements, &self.linear_density)
+        Structure::with_lumped_masses(model.clone(), elements, &self.linear_density, &self.point_masses)
     }
 
     /// Substitution: the real structure that carries `scale` × the form-found `forces`
