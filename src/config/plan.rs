@@ -172,6 +172,7 @@ impl CaseConfig {
             steps: spec.steps,
             max_cuts: spec.max_cuts,
             prescribe,
+            modes: spec.eigen.unwrap_or(0),
         }))
     }
 }

@@ -492,6 +492,15 @@ fn check_folding(f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
     }
     check_cuts("folding.max_cuts", f.max_cuts, p);
     let Some(model) = model else { return };
+    if let Some(k) = f.eigen {
+        let dof_count = 3 * model.node_count() - model.support_count();
+        if k == 0 || k > dof_count {
+            p.add(
+                "folding.eigen",
+                format!("is {k}; must lie in 1..={dof_count} (the model's free DOF)"),
+            );
+        }
+    }
     for (k, s) in f.prescribe.iter().enumerate() {
         if let Err(e) = model.group(&s.group) {
             p.add(format!("folding.prescribe[{k}].group"), e.to_string());
