@@ -86,7 +86,7 @@ impl CaseConfig {
                     model.as_ref(),
                     &mut p,
                 );
-                check_transient_loading(name, t, model.as_ref(), &mut p);
+                check_transient_loading(name, t, self.model_has_supports(), model.as_ref(), &mut p);
             }
         }
         if let Some(f) = &self.folding {
@@ -105,6 +105,12 @@ impl CaseConfig {
         } else {
             Err(p.0)
         }
+    }
+
+    /// Whether the model has a support (a tower's base is supported); known without
+    /// building the model, so that a model that does not build still gets the check.
+    fn model_has_supports(&self) -> bool {
+        self.model.tower.is_some() || self.model.nodes.iter().any(|n| !n.fix.is_empty())
     }
 
     /// Built-in materials with this config's additions.
@@ -408,14 +414,14 @@ fn check_folding(f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
 /// known nodes and at least one; time functions have positive durations and frequencies
 /// and tables increasing times; ground motion needs supports to move; an initial
 /// displacement or velocity may not move a supported direction.
-fn check_transient_loading(name: &str, t: &TransientSpec, model: Option<&Model>, p: &mut Problems) {
+fn check_transient_loading(name: &str, t: &TransientSpec, supported: bool, model: Option<&Model>, p: &mut Problems) {
     for (k, l) in t.loads.iter().enumerate() {
         check_node_set(&format!("{name}.loads[{k}]"), &l.nodes, &l.groups, model, p);
         check_time_function(&format!("{name}.loads[{k}].time"), &l.time, p);
     }
     if let Some(g) = &t.ground_motion {
         check_time_function(&format!("{name}.ground_motion.time"), &g.time, p);
-        if model.is_some_and(|m| m.support_count() == 0) {
+        if !supported {
             p.add(
                 format!("{name}.ground_motion"),
                 "the model has no support for the ground to move: fix some directions (`fix` of `model.nodes`), or give the forces as `loads`",
