@@ -1,3 +1,4 @@
+use super::loading::{NodalVectorSpec, StartFrom, TimeFunctionSpec};
 use super::schema::*;
 use super::{LawSpec, MaterialSpec};
 use crate::model::generate::TowerSpec;
@@ -85,6 +86,7 @@ impl CaseConfig {
                     model.as_ref(),
                     &mut p,
                 );
+                check_transient_loading(name, t, self.model_has_supports(), model.as_ref(), &mut p);
             }
         }
         if let Some(f) = &self.folding {
@@ -104,6 +106,12 @@ impl CaseConfig {
         } else {
             Err(p.0)
         }
+    }
+
+    /// Whether the model has a support (a tower's base is supported); known without
+    /// building the model, so that a model that does not build still gets the check.
+    fn model_has_supports(&self) -> bool {
+        self.model.tower.is_some() || self.model.nodes.iter().any(|n| !n.fix.is_empty())
     }
 
     /// Built-in materials with this config's additions.
@@ -508,6 +516,136 @@ fn check_folding(f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
         if s.target == FoldTarget::ToBase {
             if let Err(e) = model.group("base") {
                 p.add(format!("folding.prescribe[{k}].to_base"), e.to_string());
+            }
+        }
+    }
+}
+
+/// The loads, ground motion and initial conditions of a transient: every node set names
+/// known nodes and at least one; time functions have positive durations and frequencies
+/// and tables increasing times; ground motion needs supports to move; an initial
+/// displacement or velocity may not move a supported direction.
+fn check_transient_loading(name: &str, t: &TransientSpec, supported: bool, model: Option<&Model>, p: &mut Problems) {
+    for (k, l) in t.loads.iter().enumerate() {
+        check_node_set(&format!("{name}.loads[{k}]"), &l.nodes, &l.groups, model, p);
+        check_time_function(&format!("{name}.loads[{k}].time"), &l.time, p);
+    }
+    if let Some(g) = &t.ground_motion {
+        check_time_function(&format!("{name}.ground_motion.time"), &g.time, p);
+        if !supported {
+            p.add(
+                format!("{name}.ground_motion"),
+                "the model has no support for the ground to move: fix some directions (`fix` of `model.nodes`), or give the forces as `loads`",
+            );
+        }
+    }
+    let Some(initial) = &t.initial else { return };
+    if name == "free_vibration" && initial.from == Some(StartFrom::Folded) {
+        p.add(
+            format!("{name}.initial.from"),
+            "folding runs after free vibration; use `equilibrium` or `previous`",
+        );
+    }
+    for (what, entries) in [("displacement", &initial.displacement), ("velocity", &initial.velocity)] {
+        for (k, e) in entries.iter().enumerate() {
+            let field = format!("{name}.initial.{what}[{k}]");
+            check_node_set(&field, &e.nodes, &e.groups, model, p);
+            if let Some(model) = model {
+                check_not_supported(&field, what, e, model, p);
+            }
+        }
+    }
+}
+
+/// A non-zero initial `what` on a supported direction, each node and direction named.
+fn check_not_supported(field: &str, what: &str, e: &NodalVectorSpec, model: &Model, p: &mut Problems) {
+    let Ok(nodes) = model.node_set(&e.nodes, &e.groups) else { return };
+    for n in nodes {
+        let node = &model.nodes[n];
+        for a in (0..3).filter(|&a| node.support[a] && e.value[a] != 0.0) {
+            p.add(
+                format!("{field}.value"),
+                format!(
+                    "node `{}` is supported in {}: an initial {what} there ({}) would move the support; set that component to 0 or leave the node out",
+                    node.id,
+                    ["x", "y", "z"][a],
+                    e.value[a]
+                ),
+            );
+        }
+    }
+}
+
+/// `nodes` and `groups` of the entry at `field` name known nodes, at least one.
+fn check_node_set(field: &str, nodes: &[String], groups: &[String], model: Option<&Model>, p: &mut Problems) {
+    if nodes.is_empty() && groups.is_empty() {
+        p.add(field, crate::model::ModelError::EmptyNodeSet.to_string());
+        return;
+    }
+    let Some(model) = model else { return };
+    let before = p.0.len();
+    for id in nodes.iter().filter(|id| !model.nodes.iter().any(|n| &n.id == *id)) {
+        p.add(
+            format!("{field}.nodes"),
+            crate::model::ModelError::UnknownNodeId { node: id.clone() }.to_string(),
+        );
+    }
+    for e in groups.iter().filter_map(|g| model.group(g).err()) {
+        p.add(format!("{field}.groups"), e.to_string());
+    }
+    if p.0.len() == before {
+        if let Err(e) = model.node_set(nodes, groups) {
+            p.add(field, e.to_string());
+        }
+    }
+}
+
+/// Durations and frequencies positive, a table's points at least two with times
+/// strictly increasing (a table read from a file was checked as it was read).
+fn check_time_function(field: &str, f: &TimeFunctionSpec, p: &mut Problems) {
+    match f {
+        TimeFunctionSpec::Constant => {}
+        TimeFunctionSpec::Step { duration } => p.positive(&format!("{field}.step.duration"), *duration),
+        TimeFunctionSpec::Ramp { duration } => p.positive(&format!("{field}.ramp.duration"), *duration),
+        TimeFunctionSpec::HalfSine { duration } => p.positive(&format!("{field}.half_sine.duration"), *duration),
+        TimeFunctionSpec::Harmonic {
+            frequency,
+            phase,
+            duration,
+        } => {
+            p.positive(&format!("{field}.harmonic.frequency"), *frequency);
+            if !phase.is_finite() {
+                p.add(format!("{field}.harmonic.phase"), format!("is {phase}; must be finite"));
+            }
+            if let Some(d) = duration {
+                p.positive(&format!("{field}.harmonic.duration"), *d);
+            }
+        }
+        TimeFunctionSpec::Table { file, points } => {
+            let field = format!("{field}.table");
+            match (file, points.len()) {
+                (Some(_), 0) => {}
+                (Some(_), _) => p.add(field.clone(), "give `file` or `points`, not both"),
+                (None, n) if n < 2 => p.add(
+                    format!("{field}.points"),
+                    format!("has {n} point(s); a table needs at least 2 `[time, value]` pairs"),
+                ),
+                (None, _) => {}
+            }
+            for (i, pt) in points.iter().enumerate() {
+                if !(pt[0].is_finite() && pt[1].is_finite()) {
+                    p.add(format!("{field}.points[{i}]"), format!("{pt:?} is not finite"));
+                } else if i > 0 && pt[0] <= points[i - 1][0] {
+                    p.add(
+                        format!("{field}.points[{i}]"),
+                        format!(
+                            "time {} is not after points[{}]'s {}; times must increase strictly: sort the points and remove duplicates",
+                            pt[0],
+                            i - 1,
+                            points[i - 1][0]
+                        ),
+                    );
+                }
             }
         }
     }

@@ -2,7 +2,7 @@
 //! case ids name output directories), each case a full config validated before any work.
 
 use super::CaseOutcome;
-use crate::config::{self, CaseConfig, ConfigError, SweepAxis, ValueError};
+use crate::config::{self, CaseConfig, ConfigError, SweepAxis, TableError, ValueError};
 use serde_json::Value;
 use std::collections::HashSet;
 use std::path::Path;
@@ -62,8 +62,10 @@ pub const MAX_CASES: usize = 100_000;
 
 /// Expands a config file's text into its cases; every case is validated, and every error
 /// of the file is reported (each distinct one once, with the first case it occurs in).
+/// `origin` is the file's path: time tables (CSV) are read relative to its directory.
 pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigError> {
-    let base = config::parse(text, origin)?;
+    let mut base = config::parse(text, origin)?;
+    config::resolve_tables(&mut base, text, origin)?;
     let axes = base.sweep.clone().unwrap_or_default().axes;
     // The base must be valid on its own; cases built on a broken one would only repeat it.
     let mut errors = config::locate_errors(origin, text, base.validate().err().unwrap_or_default());
@@ -201,7 +203,22 @@ impl Sweep<'_> {
         if !errors.is_empty() {
             return Err(errors);
         }
-        let config: CaseConfig = serde_json::from_value(v).map_err(|e| self.unreadable(chosen, base, e.to_string()))?;
+        let mut config: CaseConfig = serde_json::from_value(v).map_err(|e| self.unreadable(chosen, base, e.to_string()))?;
+        // A sweep value may name a table file the base does not.
+        config.resolve_tables(config::config_dir(self.origin)).map_err(|errors| {
+            errors
+                .into_iter()
+                .map(|e| match e {
+                    TableError::Field(e) => {
+                        let line = self
+                            .setter_line(chosen, &e.field)
+                            .or_else(|| config::locate_line(self.text, &e.field));
+                        self.error(line, e.field, e.message)
+                    }
+                    TableError::Csv(e) => e,
+                })
+                .collect::<Vec<_>>()
+        })?;
         config.validate().map_err(|errors| {
             errors
                 .into_iter()
