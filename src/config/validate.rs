@@ -327,8 +327,8 @@ fn check_newton(n: &NewtonSettings, p: &mut Problems) {
 /// output a config can ask for (the paper's deployment has 16 000).
 const MAX_STEPS: usize = 100_000_000;
 
-/// Most halvings of a failing step: 2^30 sub-steps is already far past any use, and the
-/// bisection recurses once per halving.
+/// Most halvings of a failing step: 2^30 sub-steps of one step is already far past any
+/// use (the bisection itself is iterative and would go deeper).
 const MAX_CUTS: u32 = 30;
 
 fn check_cuts(field: &str, cuts: u32, p: &mut Problems) {
