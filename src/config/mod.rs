@@ -4,12 +4,14 @@
 //! field and the range, and all of them are reported, each at its line.
 
 mod build;
+mod limits;
 mod locate;
 mod materials;
 mod plan;
 mod schema;
 mod validate;
 
+pub use limits::{bytes_text, Estimate, LimitSpec, Limits, Part, MAX_MEMORY_GB, MAX_OUTPUT_GB, MAX_STEPS};
 pub use materials::{library, LawSpec, MaterialSpec};
 pub use schema::*;
 pub use validate::{ConfigError, FieldError, ValueError};
