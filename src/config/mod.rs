@@ -5,6 +5,7 @@
 
 mod build;
 mod loading;
+mod limits;
 mod locate;
 mod materials;
 mod plan;
@@ -13,6 +14,7 @@ mod tables;
 mod validate;
 
 pub use loading::*;
+pub use limits::{bytes_text, Estimate, LimitSpec, Limits, Part, MAX_MEMORY_GB, MAX_OUTPUT_GB, MAX_STEPS};
 pub use materials::{library, LawSpec, MaterialSpec};
 pub use schema::*;
 pub use tables::{parse_table, TableError};

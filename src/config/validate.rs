@@ -1,4 +1,5 @@
 use super::loading::{NodalVectorSpec, StartFrom, TimeFunctionSpec};
+use super::limits::{bytes_text, Estimate, LimitSpec, Limits};
 use super::schema::*;
 use super::{LawSpec, MaterialSpec};
 use crate::model::generate::TowerSpec;
@@ -37,9 +38,9 @@ pub struct FieldError {
     pub message: String,
 }
 
-/// Collects problems so that one run of the checks reports all of them.
-#[derive(Default)]
-struct Problems(Vec<FieldError>);
+/// Collects problems so that one run of the checks reports all of them, under the limits
+/// in force.
+struct Problems(Vec<FieldError>, Limits);
 
 impl Problems {
     fn add(&mut self, field: impl Into<String>, message: impl Into<String>) {
@@ -67,10 +68,19 @@ impl Problems {
 }
 
 impl CaseConfig {
-    /// Range and cross-section checks that the types cannot express, all of them: a model
-    /// that does not build skips only the checks that need it.
+    /// Range and cross-section checks that the types cannot express, all of them, under
+    /// this config's own `limits`: a model that does not build skips only the checks that
+    /// need it.
     pub fn validate(&self) -> Result<(), Vec<FieldError>> {
-        let mut p = Problems::default();
+        self.validate_with(&Limits::new(&self.limits, false)).map(|_| ())
+    }
+
+    /// [`CaseConfig::validate`] under `limits` (a sweep's, or lifted), with the case's
+    /// estimated output and peak memory when it is valid; a peak memory over the limit
+    /// is an error of the field that drives it.
+    pub fn validate_with(&self, limits: &Limits) -> Result<Estimate, Vec<FieldError>> {
+        let mut p = Problems(Vec::new(), *limits);
+        check_limits(&self.limits, &mut p);
         let model = self.check_model(&mut p);
         self.check_materials(&mut p);
         self.check_shape(&mut p);
@@ -101,10 +111,28 @@ impl CaseConfig {
         }
         check_name(&self.name, &mut p);
         check_newton(&self.newton, &mut p);
-        if p.0.is_empty() {
-            Ok(())
-        } else {
-            Err(p.0)
+        match model {
+            // Estimated only from valid values: a zero dt would make it meaningless.
+            Some(model) if p.0.is_empty() => {
+                let estimate = self.estimate(&model);
+                if estimate.memory > limits.max_memory {
+                    let part = &estimate.memory_part;
+                    p.add(
+                        part.field.clone(),
+                        format!(
+                            "estimated peak memory {} exceeds the limit of {} per case; the largest part: {}, {}; {}",
+                            bytes_text(estimate.memory),
+                            bytes_text(limits.max_memory),
+                            part.what,
+                            bytes_text(part.bytes),
+                            Limits::remedy("max_memory_gb")
+                        ),
+                    );
+                    return Err(p.0);
+                }
+                Ok(estimate)
+            }
+            _ => Err(p.0),
         }
     }
 
@@ -418,12 +446,36 @@ fn check_newton(n: &NewtonSettings, p: &mut Problems) {
     p.positive("newton.max_step", n.max_step);
 }
 
-/// Most time steps of one stage and static steps of folding: bounds the work and the
-/// output a config can ask for (the paper's deployment has 16 000).
-const MAX_STEPS: usize = 100_000_000;
+/// The `limits` section's own values.
+fn check_limits(l: &LimitSpec, p: &mut Problems) {
+    for (field, v) in [("limits.max_output_gb", l.max_output_gb), ("limits.max_memory_gb", l.max_memory_gb)] {
+        if let Some(v) = v {
+            p.positive(field, v);
+        }
+    }
+    if l.max_steps == Some(0) {
+        p.add("limits.max_steps", "is 0; must be ≥ 1");
+    }
+}
 
-/// Most halvings of a failing step: 2^30 sub-steps is already far past any use, and the
-/// bisection recurses once per halving.
+/// The steps of one stage against `limits.max_steps` (time steps and folding steps bound
+/// the work and the output a config can ask for).
+fn check_steps(field: &str, steps: f64, what: &str, p: &mut Problems) {
+    let max = p.1.max_steps;
+    if steps > max as f64 {
+        let how = match p.1.lifted {
+            true => "the most tsim can count".to_string(),
+            false => Limits::remedy("max_steps"),
+        };
+        p.add(
+            field,
+            format!("{what} {steps:.3e} steps; at most {max:.0e} are allowed in one stage ({how})"),
+        );
+    }
+}
+
+/// Most halvings of a failing step: 2^30 sub-steps of one step is already far past any
+/// use (the bisection itself is iterative and would go deeper).
 const MAX_CUTS: u32 = 30;
 
 fn check_cuts(field: &str, cuts: u32, p: &mut Problems) {
@@ -438,16 +490,12 @@ fn check_cuts(field: &str, cuts: u32, p: &mut Problems) {
 fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option<&Model>, p: &mut Problems) {
     p.positive(&format!("{name}.dt"), t.dt);
     p.positive(&format!("{name}.duration"), t.duration);
-    let steps = t.duration / t.dt;
-    if steps > MAX_STEPS as f64 {
-        p.add(
-            format!("{name}.duration"),
-            format!(
-                "{:e} s at Δt = {:e} s is {steps:.3e} steps; at most {MAX_STEPS:.0e} are allowed in one stage",
-                t.duration, t.dt
-            ),
-        );
-    }
+    check_steps(
+        &format!("{name}.duration"),
+        t.duration / t.dt,
+        &format!("{:e} s at Δt = {:e} s is", t.duration, t.dt),
+        p,
+    );
     if t.dt > t.duration {
         p.add(
             format!("{name}.dt"),
@@ -474,9 +522,10 @@ fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option
 }
 
 fn check_static(s: &super::StaticSpec, gravity: bool, p: &mut Problems) {
-    if s.steps == 0 || s.steps > MAX_STEPS {
-        p.add("static.steps", format!("is {}; must lie in 1..={MAX_STEPS}", s.steps));
+    if s.steps == 0 {
+        p.add("static.steps", "is 0; must be ≥ 1");
     }
+    check_steps("static.steps", s.steps as f64, "is", p);
     check_cuts("static.max_cuts", s.max_cuts, p);
     if s.loads.is_empty() && !gravity {
         p.add("static", "nothing to apply: give `loads` or `gravity`");
@@ -495,9 +544,10 @@ fn check_static(s: &super::StaticSpec, gravity: bool, p: &mut Problems) {
 }
 
 fn check_folding(f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
-    if f.steps == 0 || f.steps > MAX_STEPS {
-        p.add("folding.steps", format!("is {}; must lie in 1..={MAX_STEPS}", f.steps));
+    if f.steps == 0 {
+        p.add("folding.steps", "is 0; must be ≥ 1");
     }
+    check_steps("folding.steps", f.steps as f64, "is", p);
     check_cuts("folding.max_cuts", f.max_cuts, p);
     let Some(model) = model else { return };
     if let Some(k) = f.eigen {

@@ -221,7 +221,7 @@ impl<'a> Newmark<'a> {
         (e.kinetic + e.strain + e.damping - e.external - self.initial_energy).abs()
     }
 
-    /// Advances by `dt`, cutting the step in halves (recursively, `max_cuts` deep) where
+    /// Advances by `dt`, cutting the step in halves (up to `max_cuts` halvings deep) where
     /// Newton fails. `load(t, f)` writes the external force on the free DOFs at time t.
     pub fn advance(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<NewtonReport, SolveError> {
         let merge = |first: NewtonReport, second: NewtonReport| NewtonReport {
