@@ -5,7 +5,7 @@
 use crate::config::CaseConfig;
 use crate::error::{Error, Result};
 use crate::model::{shape_error, Model};
-use crate::record::{FormFindRecord, ModelRecord, Recorder, Stage};
+use crate::record::{Constraints, FormFindRecord, ModelRecord, Recorder, Stage};
 use crate::stage::eigen::EigenSummary;
 use crate::stage::fold::FoldSummary;
 use crate::stage::formfind::{FormFindSummary, SelfEquilibrium};
@@ -48,7 +48,17 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     let (mut structure, equilibrium, found) = shape(cfg, &model, &settings, recorder)?;
     summary.substitution = SubstitutionSummary::new(&structure, &equilibrium)?;
     summary.substitution.require_stable(cfg.substitution.allow_unstable)?;
-    record_structure(recorder, &structure, &equilibrium, found.as_ref(), cfg.masses.as_str())?;
+    let folding = cfg.folding(&model)?;
+    // Folding's prescribed directions are reactions too; the outputs fix their layout now.
+    let constraints: Vec<(Stage, Constraints)> = folding.iter().map(|f| (Stage::Folding, f.constraints(&structure.model))).collect();
+    record_structure(
+        recorder,
+        &structure,
+        &equilibrium,
+        found.as_ref(),
+        cfg.masses.as_str(),
+        &constraints,
+    )?;
     summary.formfinding = found.map(|f| f.summary);
     // 3. Eigen analysis at the equilibrium, and the Rayleigh damping it gives.
     if let Some(eigen) = cfg.eigen_stage() {
@@ -63,7 +73,7 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     }
     // 5. Folding from the equilibrium.
     let mut folded = equilibrium.clone();
-    if let Some(folding) = cfg.folding(&model)? {
+    if let Some(folding) = folding {
         let (state, fold) = folding.run(&structure, equilibrium.clone(), &settings, recorder)?;
         (folded, summary.folding) = (state, Some(fold));
     }
@@ -113,12 +123,14 @@ fn record_structure(
     shape: &State,
     found: Option<&FormFound>,
     mass_reading: &str,
+    constraints: &[(Stage, Constraints)],
 ) -> Result<()> {
     let model = ModelRecord {
         model: &structure.model,
         rest_lengths: &structure.elements.rest,
         masses: &structure.masses,
         mass_reading,
+        constraints,
     };
     recorder.model(&model).map_err(|source| Error::Record { stage: "model", source })?;
     if let Some(f) = found {
