@@ -822,6 +822,27 @@ pub(super) mod tests {
             vec![0.0, 3.0, 6.0, 9.0, 10.0]
         );
         assert_eq!(file.dataset("deployment/member_length").unwrap().shape(), vec![5, m]);
+        // 6 supported directions, and in folding the prescribed z of the last node.
+        assert_eq!(file.dataset("deployment/reaction").unwrap().shape(), vec![5, 6]);
+        let reaction = file.dataset("folding/reaction").unwrap().read_raw::<f64>().unwrap();
+        assert_eq!(reaction.len(), 5 * 7);
+        assert_eq!(reaction[7..14], [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0].map(|k| k + 3.0));
+        let labels = |name: &str| -> Vec<String> {
+            let ds = file.dataset(name).unwrap();
+            ds.read_raw::<VarLenUnicode>().unwrap().iter().map(|s| s.to_string()).collect()
+        };
+        assert_eq!(labels("folding/support")[6], format!("{}.z", model.nodes[n - 1].id));
+        assert_eq!(labels("folding/support_kind")[6], "prescribed");
+        assert_eq!(labels("folding/support_node")[0], model.nodes[0].id);
+        assert_eq!(labels("deployment/support_axis")[..2], ["x", "y"]);
+        assert_eq!(
+            file.dataset("free_vibration/applied_load").unwrap().read_raw::<f64>().unwrap()[3 * n * 4 + 2],
+            -10.0
+        );
+        assert_eq!(
+            file.dataset("folding/equilibrium_error").unwrap().read_raw::<f64>().unwrap()[4],
+            1e-12 * 10.0
+        );
         for group in ["model", "formfinding", "eigen", "free_vibration", "folding", "deployment"] {
             let g = file.group(group).unwrap();
             for name in g.member_names().unwrap() {
@@ -862,6 +883,28 @@ pub(super) mod tests {
         );
         let status = status(&path);
         assert!(status.starts_with("failed: é") && status.len() <= STATUS_LEN && status.len() >= STATUS_LEN - 1);
+    }
+
+    /// A model without supports has an empty `support` dimension (folding here still
+    /// prescribes one direction): the datasets exist and are written.
+    #[test]
+    fn a_model_without_supports_has_an_empty_support_dimension() {
+        let mut model = TowerSpec {
+            struts: 3,
+            stages: 1,
+            ..TowerSpec::paper()
+        }
+        .build();
+        model.nodes.iter_mut().for_each(|n| n.support = [false; 3]);
+        let path = temp_path("free.h5");
+        let mut rec = Hdf5Recorder::create(&path, "c", "").unwrap();
+        drive(&mut rec, &model, 5, 1).unwrap();
+        rec.finish(&Outcome::Complete).unwrap();
+        let file = File::open(&path).unwrap();
+        assert_eq!(file.dataset("deployment/reaction").unwrap().shape(), vec![6, 0]);
+        assert_eq!(file.dataset("deployment/support").unwrap().shape(), vec![0]);
+        assert_eq!(file.dataset("folding/reaction").unwrap().shape(), vec![6, 1]);
+        assert_eq!(file.dataset("deployment/applied_load").unwrap().shape(), vec![6, 6, 3]);
     }
 
     #[test]
