@@ -20,7 +20,7 @@ use tsim::model::MemberKind;
 use tsim::output::h5::Hdf5Recorder;
 use tsim::output::replay::McapRecorder;
 use tsim::output::Background;
-use tsim::record::{EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Outcome, Recorder, Stage};
+use tsim::record::{Constraints, EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Outcome, Recorder, Stage};
 
 type Result<T> = std::result::Result<T, Box<dyn std::error::Error + Send + Sync>>;
 
@@ -60,6 +60,7 @@ fn main() -> Result<()> {
             rest_lengths: &rest,
             masses: &masses,
             mass_reading: "physical",
+            constraints: &[],
         })
     })?;
     each(&mut |r| {
@@ -87,7 +88,16 @@ fn main() -> Result<()> {
             Stage::FreeVibration if slow => 3000,
             _ => 301,
         };
-        each(&mut |r| r.begin_stage(stage))?;
+        let supports = Constraints::new(&model, &[]);
+        each(&mut |r| r.begin_stage(stage, &supports))?;
+        // 1 N down on every node, carried by the vertical supports alike.
+        let applied = vec![Vector3::new(0.0, 0.0, -1.0); n];
+        let vertical = supports.0.iter().filter(|c| c.axis == 2).count() as f64;
+        let reactions: Vec<f64> = supports
+            .0
+            .iter()
+            .map(|c| if c.axis == 2 { n as f64 / vertical } else { 0.0 })
+            .collect();
         for step in 0..=steps {
             if slow && stage == Stage::FreeVibration {
                 std::thread::sleep(std::time::Duration::from_millis(2));
@@ -112,6 +122,9 @@ fn main() -> Result<()> {
                     damping: 0.01 * s,
                     external: 0.02 * s,
                 },
+                applied: &applied,
+                reactions: &reactions,
+                equilibrium_error: 0.0,
             };
             each(&mut |r| r.frame(&frame))?;
         }

@@ -5,7 +5,7 @@
 use crate::config::{CaseConfig, StartFrom, TransientSpec};
 use crate::error::{Error, Result};
 use crate::model::{shape_error, Model};
-use crate::record::{FormFindRecord, ModelRecord, Recorder, Stage};
+use crate::record::{Constraints, FormFindRecord, ModelRecord, Recorder, Stage};
 use crate::stage::eigen::EigenSummary;
 use crate::stage::fold::FoldSummary;
 use crate::stage::formfind::{FormFindSummary, SelfEquilibrium};
@@ -55,7 +55,10 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     let (mut structure, unloaded, found) = shape(cfg, &model, &settings, recorder)?;
     summary.substitution = SubstitutionSummary::new(&structure, &unloaded)?;
     summary.substitution.require_stable(cfg.substitution.allow_unstable)?;
-    record_structure(recorder, &structure, &unloaded, &found, cfg.masses.as_str())?;
+    let folding = cfg.folding(&model)?;
+    // Folding's prescribed directions are reactions too; the outputs fix their layout now.
+    let constraints: Vec<(Stage, Constraints)> = folding.iter().map(|f| (Stage::Folding, f.constraints(&structure.model))).collect();
+    record_structure(recorder, &structure, &unloaded, &found, cfg.masses.as_str(), &constraints)?;
     match found.stage {
         Stage::FormFinding => summary.formfinding = Some(found.summary),
         _ => summary.equilibrium = Some(found.summary),
@@ -84,7 +87,7 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     }
     // 5. Folding from the equilibrium.
     let mut folded = equilibrium.clone();
-    if let Some(folding) = cfg.folding(&model)? {
+    if let Some(folding) = folding {
         let (state, fold) = folding.run(&structure, equilibrium.clone(), &settings, recorder)?;
         (folded, previous, summary.folding) = (state.clone(), state, Some(fold));
     }
@@ -148,12 +151,14 @@ fn record_structure(
     shape: &State,
     found: &FormFound,
     mass_reading: &str,
+    constraints: &[(Stage, Constraints)],
 ) -> Result<()> {
     let model = ModelRecord {
         model: &structure.model,
         rest_lengths: &structure.elements.rest,
         masses: &structure.masses,
         mass_reading,
+        constraints,
     };
     recorder.model(&model).map_err(|source| Error::Record { stage: "model", source })?;
     let record = FormFindRecord {

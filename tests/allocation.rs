@@ -10,7 +10,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use tsim::config::{parse_case, GroundMotionSpec, NodalForceSpec, TimeFunctionSpec};
 use tsim::pipeline::run_case;
-use tsim::record::{Frame, RecordResult, Recorder, Stage};
+use tsim::record::{Constraints, Frame, RecordResult, Recorder, Stage};
 use tsim::solve::LinearSolverChoice;
 
 struct Counting;
@@ -56,7 +56,7 @@ struct StepAllocations {
 }
 
 impl Recorder for StepAllocations {
-    fn begin_stage(&mut self, stage: Stage) -> RecordResult {
+    fn begin_stage(&mut self, stage: Stage, _constraints: &Constraints) -> RecordResult {
         self.stage = Some(stage);
         Ok(())
     }

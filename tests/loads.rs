@@ -44,7 +44,7 @@ impl Recorder for Log {
         self.masses = record.masses.to_vec();
         Ok(())
     }
-    fn begin_stage(&mut self, stage: Stage) -> RecordResult {
+    fn begin_stage(&mut self, stage: Stage, _constraints: &tsim::record::Constraints) -> RecordResult {
         self.stage = Some(stage);
         Ok(())
     }
@@ -579,7 +579,7 @@ fn star_config(table: &str) -> String {
 }
 
 fn load_errors(path: &std::path::Path) -> String {
-    match tsim::run::load(path) {
+    match tsim::run::load(path, false) {
         Err(e) => e.to_string(),
         Ok(_) => panic!("{} loaded without error", path.display()),
     }
@@ -595,7 +595,7 @@ fn csv_table_is_read_into_the_resolved_config() {
     std::fs::copy(fixture, dir.join("pulse.csv")).unwrap();
     let path = dir.join("case.yaml");
     std::fs::write(&path, star_config("{ table: { file: pulse.csv } }")).unwrap();
-    let (_, cases) = tsim::run::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let cases = tsim::run::load(&path, false).unwrap_or_else(|e| panic!("{e}")).cases;
     let yaml = &cases[0].yaml;
     assert!(!yaml.contains("pulse.csv"), "{yaml}");
     let spec = cases[0].config.free_vibration.as_ref().unwrap().ground_motion.as_ref().unwrap();
@@ -689,7 +689,7 @@ fn load_errors_name_the_field_and_line() {
       - {{ nodes: [mid], value: [0, 0.1, 0.5] }}
 "
     );
-    let e = match tsim::run::expand(&text, "bad.yaml") {
+    let e = match tsim::run::expand(&text, "bad.yaml", false) {
         Err(e) => e.to_string(),
         Ok(_) => panic!("accepted"),
     };
@@ -727,7 +727,7 @@ free_vibration:
   duration: 0.1
   ground_motion: { acceleration: [1, 0, 0], time: constant }
 ";
-    let e = match tsim::run::expand(free, "free.yaml") {
+    let e = match tsim::run::expand(free, "free.yaml", false) {
         Err(e) => e.to_string(),
         Ok(_) => panic!("accepted"),
     };

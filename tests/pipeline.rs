@@ -18,7 +18,7 @@ use tsim::dynamics::{Damping, DampingTangent, Integrator, Newmark, NewmarkParams
 use tsim::law::{ForceLaw, LinearElastic};
 use tsim::model::{Member, MemberKind, Model, Node};
 use tsim::pipeline::{run_case, CaseSummary};
-use tsim::record::{Energy, Frame, RecordResult, Recorder, Stage};
+use tsim::record::{Constraints, Energy, Frame, RecordResult, Recorder, Stage};
 use tsim::solve::{NewtonSettings, TangentUpdate};
 use tsim::stage::eigen::{modes, tangent_matrix};
 use tsim::stage::substitute::{balanced_forces, substitute};
@@ -610,16 +610,33 @@ fn objective_damping_ignores_rigid_motion() {
 /// The energy ledger of every recorded step, per stage: an independent check of the
 /// summary's figures (configs/paper.yaml records every step, `outputs.every: 1`).
 /// Energy of every frame, and the node positions of every deployment frame.
+/// Energy of every frame, and the node positions of every deployment frame; the
+/// constrained directions of each stage and, of every frame, its reactions, applied loads,
+/// equilibrium error and largest member force (and the folding frames' positions).
 #[derive(Default)]
 struct EnergyLog {
     stage: Option<Stage>,
     frames: Vec<(Stage, f64, Energy)>,
     deployment: Vec<Vec<Vector3<f64>>>,
+    constraints: Vec<(Stage, Constraints)>,
+    balance: Vec<Balance>,
+}
+
+/// What a frame says about the balance of the whole structure.
+struct Balance {
+    stage: Stage,
+    reactions: Vec<f64>,
+    applied: Vec<Vector3<f64>>,
+    equilibrium_error: f64,
+    max_force: f64,
+    /// Folding frames only.
+    positions: Vec<Vector3<f64>>,
 }
 
 impl Recorder for EnergyLog {
-    fn begin_stage(&mut self, stage: Stage) -> RecordResult {
+    fn begin_stage(&mut self, stage: Stage, constraints: &Constraints) -> RecordResult {
         self.stage = Some(stage);
+        self.constraints.push((stage, constraints.clone()));
         Ok(())
     }
     fn frame(&mut self, frame: &Frame) -> RecordResult {
@@ -628,6 +645,18 @@ impl Recorder for EnergyLog {
         if stage == Stage::Deployment {
             self.deployment.push(frame.positions.to_vec());
         }
+        self.balance.push(Balance {
+            stage,
+            reactions: frame.reactions.to_vec(),
+            applied: frame.applied.to_vec(),
+            equilibrium_error: frame.equilibrium_error,
+            max_force: frame.forces.iter().fold(0.0, |m, f| m.max(f.abs())),
+            positions: if stage == Stage::Folding {
+                frame.positions.to_vec()
+            } else {
+                Vec::new()
+            },
+        });
         Ok(())
     }
 }
@@ -636,6 +665,14 @@ struct PaperRun {
     cfg: CaseConfig,
     summary: CaseSummary,
     log: Vec<(Stage, f64, Energy)>,
+    constraints: Vec<(Stage, Constraints)>,
+    balance: Vec<Balance>,
+    deployment: Vec<Vec<Vector3<f64>>>,
+}
+
+/// Node positions of every deployment frame of the paper run.
+fn paper_run_deployment_positions() -> &'static [Vec<Vector3<f64>>] {
+    &paper_run().deployment
 }
 
 impl PaperRun {
@@ -658,6 +695,9 @@ fn paper_run() -> &'static PaperRun {
             cfg,
             summary,
             log: log.frames,
+            constraints: log.constraints,
+            balance: log.balance,
+            deployment: log.deployment,
         }
     })
 }
@@ -717,6 +757,214 @@ fn folding_converges_and_ends_flat() {
         "final height is {:.3} % of the initial",
         100.0 * f.height_ratio
     );
+}
+
+/// Σ reactions + Σ applied, per axis, from a frame's own record, and its scale: the
+/// largest of |Σ applied|, |Σ reactions| and the largest |member force|.
+fn frame_balance(b: &Balance, constraints: &Constraints) -> (Vector3<f64>, f64) {
+    let applied: Vector3<f64> = b.applied.iter().sum();
+    let mut reactions = Vector3::zeros();
+    for (c, r) in constraints.0.iter().zip(&b.reactions) {
+        reactions[c.axis] += r;
+    }
+    let scale = applied.norm().max(reactions.norm()).max(b.max_force);
+    (reactions + applied, scale)
+}
+
+/// Folding of the paper tower (issue 14): in every step the reactions at the supports and
+/// at the prescribed directions balance the applied load (none here: Σ R = 0), and the
+/// reactions at the prescribed directions are the folding forces whose work fold.rs books:
+/// the trapezoidal work of the recorded reactions over the recorded displacements
+/// reproduces the frames' `external_work`.
+///
+/// Tolerances. In a static step Σ R + Σ f is the sum of the Newton residual over the 37
+/// free directions (52 less the 15 prescribed); issue 14 asks for 1e-10 of the step's force
+/// scale (max(|Σ f|, |Σ R|, max |N|), 27…100 N here). That is below the round-off of the
+/// member forces themselves on this tower: a strut's force EA (l − l0)/l0 takes l from
+/// coordinates of up to ~9 m, so one ulp of a coordinate (ε·9 m) moves it by
+/// ε·9 m·EA/l0 ≈ 2e-7 N (EA/l0 ≈ 1e8 N/m), 1e-8 of the force scale; no solve can balance
+/// a node better. The bound is therefore 1e-10 of the scale plus, per free direction, one
+/// ulp of the reach through the stiffest member (ε (|dN/dl| reach + |N|), the round-off
+/// floor of the residual test without its safety factor 64): ~1e-5 N in all, 1e-7 of the
+/// scale, while a missing load, a reaction's wrong sign or a lost member force would be
+/// ≥ 1e-1 N (measured: 7.5e-8 N at most, 7.7e-10 relative, in the solved steps; step 0,
+/// the substituted equilibrium, 1.3e-7 N). The work is the same sums in another order
+/// (fold.rs multiplies each reaction pair by (Δfraction)·(end − start), the test by the
+/// difference of recorded positions): round-off of ~ε per term against the sum of |terms|
+/// (150 terms), so 1e-12 of Σ |terms| leaves a wide margin while a reaction differing from
+/// fold.rs's by one part in 1e9 would show.
+#[test]
+fn folding_reactions_balance_and_do_the_folding_work() {
+    let run = paper_run();
+    let f = run.summary.folding.as_ref().expect("folding ran");
+    let constraints = &run.constraints.iter().find(|(s, _)| *s == Stage::Folding).expect("folding began").1;
+    let prescribed: Vec<usize> = (0..constraints.len()).filter(|&k| constraints.0[k].prescribed).collect();
+    // paper.yaml prescribes z of the top ring and the two middle rings (5 nodes each).
+    assert_eq!(prescribed.len(), 15);
+    assert!(prescribed.iter().all(|&k| constraints.0[k].axis == 2));
+    let frames: Vec<&Balance> = run.balance.iter().filter(|b| b.stage == Stage::Folding).collect();
+    assert_eq!(frames.len(), f.steps + 1);
+    let free = 3 * frames[0].applied.len() - constraints.len();
+    assert_eq!(free, 37);
+    let positions: Vec<Vec<Vector3<f64>>> = frames.iter().map(|b| b.positions.clone()).collect();
+    let max_force = frames.iter().map(|b| b.max_force).fold(0.0, f64::max);
+    let ulp = roundoff_floor(&run.cfg, &positions, max_force) / 64.0;
+    let mut worst = 0.0_f64;
+    for (step, b) in frames.iter().enumerate() {
+        let (e, scale) = frame_balance(b, constraints);
+        worst = worst.max(e.norm() / scale);
+        let bound = 1e-10 * scale + free as f64 * ulp;
+        assert!(
+            e.norm() <= bound,
+            "step {step}: |Σ R + Σ f| = {:.3e} N, bound {bound:.3e} N (scale {scale:.3e} N)",
+            e.norm()
+        );
+        assert!(
+            (b.equilibrium_error - e.norm()).abs() <= 1e-12 * scale,
+            "step {step}: the frame's own check differs"
+        );
+    }
+    let summary = f.equilibrium;
+    eprintln!(
+        "folding: equilibrium error max {:.3e} N, {:.3e} relative (summary; independent {worst:.3e}); one ulp through the stiffest member {ulp:.2e} N",
+        summary.max_equilibrium_error, summary.max_equilibrium_error_relative
+    );
+    // The same figure computed twice (summation orders differ): equal to 1e-12 of the
+    // scale, as each frame's check above.
+    assert!((summary.max_equilibrium_error_relative - worst).abs() <= 1e-12);
+    // The work ledger books one trapezoid per step only when no step was cut.
+    assert_eq!(f.cut_steps, 0, "paper.yaml folds without sub-steps");
+    let ledger = run.frames(Stage::Folding);
+    let (mut work, mut size) = (0.0, 0.0);
+    for k in 1..frames.len() {
+        for &j in &prescribed {
+            let c = constraints.0[j];
+            let dx = frames[k].positions[c.node][c.axis] - frames[k - 1].positions[c.node][c.axis];
+            let term = 0.5 * (frames[k - 1].reactions[j] + frames[k].reactions[j]) * dx;
+            (work, size) = (work + term, size + term.abs());
+        }
+        let booked = ledger[k].1.external;
+        assert!(
+            (work - booked).abs() <= 1e-12 * size,
+            "step {k}: work of the recorded reactions {work:.9e} J, fold.rs booked {booked:.9e} J"
+        );
+    }
+    assert!(work.abs() > 1.0, "folding does work: {work:.3e} J");
+}
+
+/// The largest round-off floor of the Newton residual test over a stage's frames, per
+/// free direction: 64 ε (|dN/dl| reach + |N|) of the stiffest member (`Assembly::scale`),
+/// with dN/dl of the paper's equilibrium (the aluminium struts' EA/l0 ≈ 1e8 N/m dominate,
+/// and their law is linear), the reach the largest coordinate of the recorded positions or
+/// strut length, and |N| the largest member force of the frame.
+fn roundoff_floor(cfg: &CaseConfig, positions: &[Vec<Vector3<f64>>], max_force: f64) -> f64 {
+    let eq = real_equilibrium(cfg);
+    let dofs = DofMap::new(&eq.model, &[]);
+    let asm = Assembly::new(&eq.model, &eq.elements, &dofs, eq.positions.clone());
+    let k_max = asm.states.iter().map(|s| s.stiffness.abs()).fold(0.0, f64::max);
+    let length = asm.states.iter().map(|s| s.length).fold(0.0, f64::max);
+    let reach = positions.iter().flatten().map(|x| x.amax()).fold(length, f64::max);
+    64.0 * f64::EPSILON * (k_max * reach + max_force)
+}
+
+/// Checks that every frame of `stage` closes its dynamic equilibrium: the frame's
+/// |Σ R + Σ f − Σ m a − Σ α m v| is at most what the Newton test leaves on the `free`
+/// directions, each ≤ 1e-10 × the force scale + the round-off floor. Returns the largest
+/// ratio of error to that bound, and the summary's relative figure is the frames' largest.
+fn dynamic_balance(balance: &[Balance], constraints: &Constraints, floor: f64, free: usize) -> f64 {
+    let mut worst = 0.0_f64;
+    for (step, b) in balance.iter().enumerate() {
+        let (_, scale) = frame_balance(b, constraints);
+        let bound = free as f64 * (1e-10 * scale + floor);
+        assert!(
+            b.equilibrium_error <= bound,
+            "step {step}: equilibrium error {:.3e} N, bound {bound:.3e} N (scale {scale:.3e} N, floor {floor:.3e} N)",
+            b.equilibrium_error
+        );
+        worst = worst.max(b.equilibrium_error / bound);
+    }
+    worst
+}
+
+/// The damped deployment's dynamic equilibrium closes (issue 14): at every step,
+/// Σ reactions + Σ applied − Σ m a − Σ α m v = 0 over the structure, to what the step's
+/// Newton test leaves. That is the sum over the 52 free directions of each one's residual,
+/// ≤ 1e-10 of the force scale + the round-off floor 64 ε (|dN/dl| reach + |N|) (see
+/// `Assembly::scale`): with the struts' EA/l0 ≈ 1e8 N/m and coordinates up to ~9 m the
+/// floor is ~1e-5 N per direction, above 1e-10 of the member forces (27…1100 N), so the
+/// relative figure (error over max(|Σ f|, |Σ R|, max |N|)) is ~1e-6 here, not 1e-10: the
+/// round-off of the stiff struts' forces, not a missing term. A missing term is far above
+/// the bound: the βK damping forces that reach the supports, the inertia or the launch load
+/// are ~1e-1…1e3 N. Checked with objective damping (8 s of paper.yaml), and over the launch
+/// (0.2 s) with the paper's β K_T·v variants, whose support rows use other member states.
+#[test]
+fn deployment_dynamic_equilibrium_closes() {
+    let run = paper_run();
+    let d = &run.summary.deployment.as_ref().expect("deployment ran").transient;
+    let constraints = &run
+        .constraints
+        .iter()
+        .find(|(s, _)| *s == Stage::Deployment)
+        .expect("deployment began")
+        .1;
+    assert!(constraints.0.iter().all(|c| !c.prescribed));
+    let free = 3 * run.balance[0].applied.len() - constraints.len();
+    assert_eq!(free, 52);
+    let frames: Vec<Balance> = run
+        .balance
+        .iter()
+        .filter(|b| b.stage == Stage::Deployment)
+        .map(|b| Balance {
+            stage: b.stage,
+            reactions: b.reactions.clone(),
+            applied: b.applied.clone(),
+            equilibrium_error: b.equilibrium_error,
+            max_force: b.max_force,
+            positions: Vec::new(),
+        })
+        .collect();
+    assert_eq!(frames.len(), d.steps + 1);
+    let max_force = frames.iter().map(|b| b.max_force).fold(0.0, f64::max);
+    let positions = &paper_run_deployment_positions();
+    let floor = roundoff_floor(&run.cfg, positions, max_force);
+    let worst = dynamic_balance(&frames, constraints, floor, free);
+    // The launch load is recorded on the moving nodes while it acts.
+    let peak = frames
+        .iter()
+        .map(|b| b.applied.iter().map(|f| f.z).sum::<f64>())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "deployment (objective): equilibrium error max {:.3e} N, {:.3e} relative (summary); floor {floor:.2e} N per direction; worst error/bound {worst:.2e}; peak Σ applied z {peak:.1} N",
+        d.equilibrium.max_equilibrium_error, d.equilibrium.max_equilibrium_error_relative
+    );
+    assert!(
+        (peak - 3000.0).abs() <= 1e-9 * 3000.0,
+        "the launch (200 N on 15 nodes) is in the applied load"
+    );
+    let relative = frames
+        .iter()
+        .map(|b| b.equilibrium_error / frame_balance(b, constraints).1)
+        .fold(0.0, f64::max);
+    // The summary's figure is the frames' largest (scales summed in another order).
+    assert!((d.equilibrium.max_equilibrium_error_relative - relative).abs() <= 1e-12 * relative);
+
+    for tangent in [DampingTangent::LastConverged, DampingTangent::Initial, DampingTangent::Current] {
+        let mut cfg = paper_config();
+        cfg.free_vibration = None;
+        let spec = cfg.deployment.as_mut().expect("paper.yaml deploys");
+        (spec.duration, spec.damping_tangent) = (0.2, tangent);
+        let mut log = EnergyLog::default();
+        let summary = run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("{tangent:?}: {e}"));
+        let frames: Vec<Balance> = log.balance.into_iter().filter(|b| b.stage == Stage::Deployment).collect();
+        let max_force = frames.iter().map(|b| b.max_force).fold(0.0, f64::max);
+        let floor = roundoff_floor(&cfg, &log.deployment, max_force);
+        let worst = dynamic_balance(&frames, constraints, floor, free);
+        let e = summary.deployment.unwrap().transient.equilibrium;
+        eprintln!(
+            "deployment 0.2 s ({tangent:?}): equilibrium error max {:.3e} N, {:.3e} relative; worst error/bound {worst:.2e}",
+            e.max_equilibrium_error, e.max_equilibrium_error_relative
+        );
+    }
 }
 
 /// Deployment with configs/paper.yaml over 8 s (issue 3's thresholds; the prototype

@@ -4,8 +4,8 @@
 //! field and the range, and all of them are reported, each at its line.
 
 mod build;
-mod loading;
 mod limits;
+mod loading;
 mod locate;
 mod materials;
 mod plan;
@@ -13,8 +13,8 @@ mod schema;
 mod tables;
 mod validate;
 
-pub use loading::*;
 pub use limits::{bytes_text, Estimate, LimitSpec, Limits, Part, MAX_MEMORY_GB, MAX_OUTPUT_GB, MAX_STEPS};
+pub use loading::*;
 pub use materials::{library, LawSpec, MaterialSpec};
 pub use schema::*;
 pub use tables::{parse_table, TableError};

@@ -1,5 +1,5 @@
-use super::loading::{NodalVectorSpec, StartFrom, TimeFunctionSpec};
 use super::limits::{bytes_text, Estimate, LimitSpec, Limits};
+use super::loading::{NodalVectorSpec, StartFrom, TimeFunctionSpec};
 use super::schema::*;
 use super::{LawSpec, MaterialSpec};
 use crate::model::generate::TowerSpec;

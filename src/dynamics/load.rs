@@ -157,6 +157,21 @@ impl Loads {
         self.nodal.iter().map(|l| l.time.end()).chain(ground).fold(0.0, f64::max)
     }
 
+    /// Adds the nodal loads at time `t` to a force per node [N] (allocates nothing).
+    pub fn add_nodal(&self, t: f64, f: &mut [Vector3<f64>]) {
+        for load in &self.nodal {
+            let s = load.factor(t);
+            if s != 0.0 {
+                load.nodes.iter().for_each(|&n| f[n] += load.force * s);
+            }
+        }
+    }
+
+    /// The ground acceleration a_g(t) [m/s²] (zero without ground motion).
+    pub fn ground_acceleration(&self, t: f64) -> Vector3<f64> {
+        self.ground.as_ref().map_or(Vector3::zeros(), |g| g.acceleration * g.time.at(t))
+    }
+
     /// Whether some load is still on after [`end`](Self::end).
     pub fn persist(&self) -> bool {
         let nodal = self

@@ -1,7 +1,8 @@
 use super::Rayleigh;
 use crate::solve::{bisect, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
 use crate::tsm::{
-    assemble_objective_damping, assemble_tangents, objective_damping, tangent_pattern, tangent_product, Assembly, MemberState,
+    assemble_objective_damping, assemble_tangents, member_damping_all, objective_damping, tangent_pattern, tangent_product, Assembly,
+    MemberState,
 };
 
 /// The energy ledger of one converged step [J].
@@ -215,6 +216,26 @@ impl<'a> Newmark<'a> {
         }
     }
 
+    /// The stiffness-proportional (β) damping force of the last converged step on all 3n
+    /// node directions into `out`, with the member states its equation used: on the free
+    /// directions it is the β part of the damping force the step balanced, on the supported
+    /// ones what the members' damping forces put into the supports. The αM part acts on
+    /// the free directions only (a support does not move relative to the base).
+    pub fn member_damping_force(&self, out: &mut [f64]) {
+        out.fill(0.0);
+        let objective = self.tangent == DampingTangent::Objective;
+        let asm = &self.asm;
+        member_damping_all(
+            asm.model,
+            self.damping_states(),
+            asm.dofs,
+            &self.v,
+            self.rayleigh.beta,
+            objective,
+            out,
+        );
+    }
+
     /// |KE + SE + D − W − E0|: zero for exact integration of the ledger.
     pub fn balance_error(&self) -> f64 {
         let e = &self.energy;
@@ -259,6 +280,12 @@ impl<'a> Newmark<'a> {
 
     /// One Newmark step of size dt; on failure the state is left as it was.
     fn step(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<NewtonReport, SolveError> {
+        if self.tangent == DampingTangent::LastConverged {
+            // K_T of the last converged state (`asm` holds it between steps). Taken here, not
+            // at the end of the previous step, so that between steps `damp_states` are still
+            // those the last converged equation used (`member_damping_force`).
+            self.damp_states.copy_from_slice(&self.asm.states);
+        }
         let n = self.mass.len();
         let t_next = self.time + dt;
         let beta = self.params.beta;
@@ -316,9 +343,6 @@ impl<'a> Newmark<'a> {
         self.time = t_next;
         let (d, w) = (self.energy.damping + dd, self.energy.external + dw);
         self.energy = self.ledger_now(d, w);
-        if self.tangent == DampingTangent::LastConverged {
-            self.damp_states.copy_from_slice(&self.asm.states);
-        }
         Ok(report)
     }
 }

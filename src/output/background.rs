@@ -17,7 +17,7 @@
 //! recorder back and drops it, which records "failed: recorder dropped before finish" as a
 //! direct recorder would.
 
-use crate::record::{EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
+use crate::record::{Constraints, EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
 use nalgebra::Vector3;
 use std::sync::mpsc::{channel, sync_channel, Receiver, Sender, SyncSender};
 use std::thread::JoinHandle;
@@ -33,7 +33,7 @@ pub const BLOCK_BYTES: usize = 1 << 20;
 pub const QUEUE_BLOCKS: usize = 4;
 
 enum Command {
-    Begin(Stage),
+    Begin(Stage, Constraints),
     Frames(Vec<OwnedFrame>),
     End(Stage),
 }
@@ -171,7 +171,7 @@ fn work<R: Recorder>(mut recorder: R, inbox: Receiver<Command>, give_back: Sende
     let run = || -> RecordResult {
         for command in inbox {
             match command {
-                Command::Begin(stage) => recorder.begin_stage(stage)?,
+                Command::Begin(stage, constraints) => recorder.begin_stage(stage, &constraints)?,
                 Command::Frames(block) => {
                     for frame in &block {
                         recorder.frame(&frame.as_frame())?;
@@ -200,10 +200,10 @@ impl<R: Recorder + Send + 'static> Recorder for Background<R> {
         self.direct()?.eigen(record)
     }
 
-    fn begin_stage(&mut self, stage: Stage) -> RecordResult {
+    fn begin_stage(&mut self, stage: Stage, constraints: &Constraints) -> RecordResult {
         self.check()?;
         self.spawn()?;
-        self.send(Command::Begin(stage))
+        self.send(Command::Begin(stage, constraints.clone()))
     }
 
     fn frame(&mut self, frame: &Frame) -> RecordResult {
@@ -265,6 +265,9 @@ pub(super) struct OwnedFrame {
     forces: Vec<f64>,
     lengths: Vec<f64>,
     energy: Energy,
+    applied: Vec<Vector3<f64>>,
+    reactions: Vec<f64>,
+    equilibrium_error: f64,
 }
 
 impl OwnedFrame {
@@ -280,6 +283,9 @@ impl OwnedFrame {
         }
         refill(&mut self.forces, f.forces);
         refill(&mut self.lengths, f.lengths);
+        refill(&mut self.applied, f.applied);
+        refill(&mut self.reactions, f.reactions);
+        self.equilibrium_error = f.equilibrium_error;
     }
 
     fn from(f: &Frame) -> Self {
@@ -290,8 +296,8 @@ impl OwnedFrame {
 
     /// Approximate size of the frame's data [bytes].
     fn bytes(&self) -> usize {
-        let vectors = self.positions.len() + self.velocities.as_ref().map_or(0, Vec::len);
-        std::mem::size_of::<Self>() + 24 * vectors + 8 * (self.forces.len() + self.lengths.len())
+        let vectors = self.positions.len() + self.velocities.as_ref().map_or(0, Vec::len) + self.applied.len();
+        std::mem::size_of::<Self>() + 24 * vectors + 8 * (self.forces.len() + self.lengths.len() + self.reactions.len())
     }
 
     fn as_frame(&self) -> Frame<'_> {
@@ -303,6 +309,9 @@ impl OwnedFrame {
             forces: &self.forces,
             lengths: &self.lengths,
             energy: self.energy,
+            applied: &self.applied,
+            reactions: &self.reactions,
+            equilibrium_error: self.equilibrium_error,
         }
     }
 }
@@ -340,8 +349,11 @@ mod tests {
             self.calls.lock().unwrap().push("model".into());
             Ok(())
         }
-        fn begin_stage(&mut self, stage: Stage) -> RecordResult {
-            self.calls.lock().unwrap().push(format!("begin {}", stage.name()));
+        fn begin_stage(&mut self, stage: Stage, constraints: &Constraints) -> RecordResult {
+            self.calls
+                .lock()
+                .unwrap()
+                .push(format!("begin {} ({} constrained)", stage.name(), constraints.len()));
             Ok(())
         }
         fn frame(&mut self, frame: &Frame) -> RecordResult {
@@ -423,9 +435,10 @@ mod tests {
             rest_lengths: &[1.0; 12],
             masses: &[1.0; 6],
             mass_reading: "physical",
+            constraints: &[],
         })
         .unwrap();
-        bg.begin_stage(Stage::FreeVibration).unwrap();
+        bg.begin_stage(Stage::FreeVibration, &Constraints::new(&model, &[])).unwrap();
         drop(bg);
         assert_eq!(crate::output::h5::tests::status(&path), "failed: recorder dropped before finish");
     }

@@ -19,7 +19,7 @@
 
 use super::chunk::ChunkEncoder;
 use crate::model::AXES;
-use crate::record::{EigenRecord, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
+use crate::record::{Constraints, EigenRecord, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
 use hdf5::types::{FixedUnicode, VarLenUnicode};
 use hdf5::{Dataset, File, Group, H5Type, Location};
 use hdf5_sys::h5::{herr_t, hsize_t};
@@ -182,13 +182,11 @@ impl Recorder for Hdf5Recorder {
 
         let chunk = (CHUNK_BYTES / (24 * model.node_count().max(1))).clamp(1, CHUNK_STEPS);
         for stage in [Stage::Static, Stage::FreeVibration, Stage::Folding, Stage::Deployment] {
-            let series = Series::create(
-                open.file.create_group(stage.name())?,
-                stage,
-                &open.node_ids,
-                &open.member_ids,
-                chunk,
-            )?;
+            let ids = Ids {
+                nodes: &open.node_ids,
+                members: &open.member_ids,
+            };
+            let series = Series::create(open.file.create_group(stage.name())?, stage, ids, record, chunk)?;
             open.series.push((stage, series));
         }
         Ok(open.file.flush()?)
@@ -258,13 +256,20 @@ impl Recorder for Hdf5Recorder {
         Ok(open.file.flush()?)
     }
 
-    fn begin_stage(&mut self, stage: Stage) -> RecordResult {
+    fn begin_stage(&mut self, stage: Stage, constraints: &Constraints) -> RecordResult {
         let open = self.open()?;
         let i = open
             .series
             .iter()
             .position(|(s, _)| *s == stage)
             .ok_or_else(|| format!("HDF5: {} is not a time-stepping stage (or model() was not recorded)", stage.name()))?;
+        if open.series[i].1.constraints != *constraints {
+            return Err(format!(
+                "HDF5: {} constrains other directions than model() declared: its `support` dimension was fixed then",
+                stage.name()
+            )
+            .into());
+        }
         // The static stage is short and comes before the eigen group is written (groups
         // cannot be created once SWMR has started): readers follow the long stages only.
         if !open.swmr && stage != Stage::Static {
@@ -304,10 +309,19 @@ impl Drop for Hdf5Recorder {
     }
 }
 
+/// Node and member ids, the labels of the `node` and `member` dimensions.
+#[derive(Clone, Copy)]
+struct Ids<'a> {
+    nodes: &'a [String],
+    members: &'a [String],
+}
+
 /// The datasets of one time-stepping stage and the block of steps not yet written.
 struct Series {
     /// (dataset, buffered values of its rows not yet written)
     columns: Vec<(Dataset, Vec<f64>)>,
+    /// The directions of the `support` dimension (the reactions' order).
+    constraints: Constraints,
     folding: bool,
     written: usize,
     buffered: usize,
@@ -317,9 +331,15 @@ struct Series {
 
 impl Series {
     /// Column order, used by [`Series::push`]: time, [fraction], position, [velocity],
-    /// member_force, member_length, kinetic, strain, damping, external. Folding, a static
-    /// stage, has `fraction` and no `velocity`.
-    fn create(group: Group, stage: Stage, node_ids: &[String], member_ids: &[String], chunk: usize) -> Result<Self, Error> {
+    /// member_force, member_length, kinetic, strain, damping, external, applied_load,
+    /// reaction, equilibrium_error. Folding, a static stage, has `fraction` and no
+    /// `velocity`. The `support` dimension (the stage's constrained directions, from
+    /// `record`) has the coordinate `support` (labels `<node>.<axis>`) and the auxiliary
+    /// coordinates `support_node`, `support_axis` and `support_kind` (`support` or
+    /// `prescribed`).
+    fn create(group: Group, stage: Stage, ids: Ids, record: &ModelRecord, chunk: usize) -> Result<Self, Error> {
+        let (node_ids, member_ids) = (ids.nodes, ids.members);
+        let constraints = record.constraints(stage);
         let folding = stage.is_static();
         let mut g = Dims::new(group);
         let (units, long_name) = if folding {
@@ -332,6 +352,39 @@ impl Series {
         g.labels("node", node_ids, "node id")?;
         g.labels("member", member_ids, "member id")?;
         g.labels("xyz", &AXES, "coordinate axis")?;
+        g.labels(
+            "support",
+            &constraints.labels(record.model),
+            "constrained direction (node.axis): a support, or prescribed by the stage",
+        )?;
+        let support_node: Vec<&str> = constraints.0.iter().map(|c| node_ids[c.node].as_str()).collect();
+        g.var(
+            "support_node",
+            &["support"],
+            &varlen(&support_node)?,
+            "1",
+            "node id of the constrained direction",
+        )?;
+        let support_axis: Vec<&str> = constraints.0.iter().map(|c| AXES[c.axis]).collect();
+        g.var(
+            "support_axis",
+            &["support"],
+            &varlen(&support_axis)?,
+            "1",
+            "axis of the constrained direction",
+        )?;
+        let kind: Vec<&str> = constraints
+            .0
+            .iter()
+            .map(|c| if c.prescribed { "prescribed" } else { "support" })
+            .collect();
+        g.var(
+            "support_kind",
+            &["support"],
+            &varlen(&kind)?,
+            "1",
+            "support of the model, or direction prescribed by the stage",
+        )?;
         let mut columns = vec![time];
         if folding {
             let what = match stage {
@@ -359,15 +412,41 @@ impl Series {
             let dims: &[&str] = if name.starts_with("member") { &["member"] } else { &[] };
             columns.push(g.streamed(name, dims, chunk, units, long_name)?);
         }
-        if folding {
-            // CF: makes xarray list `fraction` as a (non-dimension) coordinate.
-            for ds in &columns[2..] {
-                str_attr(ds, "coordinates", "fraction")?;
+        for (name, dims, long_name) in [
+            (
+                "applied_load",
+                &["node", "xyz"][..],
+                "external load applied on the node (dead load, weight, stage loads)",
+            ),
+            (
+                "reaction",
+                &["support"],
+                "reaction at the constrained direction (force on the node)",
+            ),
+            (
+                "equilibrium_error",
+                &[],
+                "norm of sum of reactions and applied loads less inertia and mass-proportional damping",
+            ),
+        ] {
+            columns.push(g.streamed(name, dims, chunk, "N", long_name)?);
+        }
+        // CF: makes xarray list `fraction` and the support labels as (non-dimension)
+        // coordinates.
+        let reaction = columns.len() - 2;
+        for (k, ds) in columns.iter().enumerate().skip(if folding { 2 } else { 1 }) {
+            let support = "support_node support_axis support_kind";
+            match (folding, k == reaction) {
+                (true, true) => str_attr(ds, "coordinates", &format!("fraction {support}"))?,
+                (true, false) => str_attr(ds, "coordinates", "fraction")?,
+                (false, true) => str_attr(ds, "coordinates", support)?,
+                (false, false) => {}
             }
         }
         let columns = columns.into_iter().map(|ds| (ds, Vec::new())).collect();
         Ok(Series {
             columns,
+            constraints,
             folding,
             written: 0,
             buffered: 0,
@@ -380,6 +459,16 @@ impl Series {
     /// SWMR reader sees the new steps only once the caller flushes the file.
     fn push(&mut self, f: &Frame) -> Result<bool, Error> {
         let n = f.positions.len();
+        if f.reactions.len() != self.constraints.len() || f.applied.len() != n {
+            return Err(format!(
+                "HDF5: frame {} has {} reactions and {} applied loads for {} constrained directions and {n} nodes",
+                f.step,
+                f.reactions.len(),
+                f.applied.len(),
+                self.constraints.len()
+            )
+            .into());
+        }
         let mut cols = self.columns.iter_mut().map(|(_, buf)| buf);
         let mut next = || cols.next().expect("column layout");
         next().push(if self.folding { f.step as f64 } else { f.time });
@@ -399,6 +488,9 @@ impl Series {
         for value in [e.kinetic, e.strain, e.damping, e.external] {
             next().push(value);
         }
+        next().extend(f.applied.iter().flat_map(|p| p.iter().copied()));
+        next().extend_from_slice(f.reactions);
+        next().push(f.equilibrium_error);
         self.buffered += 1;
         let full = self.buffered == self.chunk;
         if full {
@@ -584,7 +676,7 @@ pub(super) mod tests {
     use super::*;
     use crate::model::generate::TowerSpec;
     use crate::model::Model;
-    use crate::record::{EigenRecord, Energy};
+    use crate::record::{Constraints, EigenRecord, Energy};
 
     pub(in crate::output) fn temp_path(name: &str) -> std::path::PathBuf {
         let dir = std::env::temp_dir().join(format!("tsim-record-{}", std::process::id()));
@@ -599,11 +691,14 @@ pub(super) mod tests {
     pub(in crate::output) fn drive(rec: &mut dyn Recorder, model: &Model, steps: usize, every: usize) -> RecordResult {
         let (n, m) = (model.node_count(), model.members.len());
         let x0 = model.positions();
+        // Folding prescribes z of the last node besides the supports.
+        let folding = Constraints::new(model, &[(n - 1, 2)]);
         rec.model(&ModelRecord {
             model,
             rest_lengths: &vec![1.0; m],
             masses: &vec![2.0; n],
             mass_reading: "paper",
+            constraints: &[(Stage::Folding, folding.clone())],
         })?;
         let forces: Vec<f64> = model
             .members
@@ -626,7 +721,12 @@ pub(super) mod tests {
             damping_ratio: &[0.02, 0.02],
         })?;
         for stage in [Stage::FreeVibration, Stage::Folding, Stage::Deployment] {
-            rec.begin_stage(stage)?;
+            let constraints = if stage == Stage::Folding {
+                folding.clone()
+            } else {
+                Constraints::new(model, &[])
+            };
+            rec.begin_stage(stage, &constraints)?;
             for step in (0..=steps).filter(|s| s % every == 0 || *s == steps) {
                 let s = step as f64;
                 let positions: Vec<_> = x0.iter().map(|p| p + Vector3::repeat(1e-3 * s)).collect();
@@ -648,6 +748,9 @@ pub(super) mod tests {
                     forces: &forces,
                     lengths: &lengths,
                     energy,
+                    applied: &vec![Vector3::new(0.0, 0.0, -s); n],
+                    reactions: &(0..constraints.len()).map(|k| k as f64 + s).collect::<Vec<_>>(),
+                    equilibrium_error: 1e-12 * s,
                 })?;
             }
             rec.end_stage(stage)?;
@@ -726,6 +829,27 @@ pub(super) mod tests {
             vec![0.0, 3.0, 6.0, 9.0, 10.0]
         );
         assert_eq!(file.dataset("deployment/member_length").unwrap().shape(), vec![5, m]);
+        // 6 supported directions, and in folding the prescribed z of the last node.
+        assert_eq!(file.dataset("deployment/reaction").unwrap().shape(), vec![5, 6]);
+        let reaction = file.dataset("folding/reaction").unwrap().read_raw::<f64>().unwrap();
+        assert_eq!(reaction.len(), 5 * 7);
+        assert_eq!(reaction[7..14], [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0].map(|k| k + 3.0));
+        let labels = |name: &str| -> Vec<String> {
+            let ds = file.dataset(name).unwrap();
+            ds.read_raw::<VarLenUnicode>().unwrap().iter().map(|s| s.to_string()).collect()
+        };
+        assert_eq!(labels("folding/support")[6], format!("{}.z", model.nodes[n - 1].id));
+        assert_eq!(labels("folding/support_kind")[6], "prescribed");
+        assert_eq!(labels("folding/support_node")[0], model.nodes[0].id);
+        assert_eq!(labels("deployment/support_axis")[..2], ["x", "y"]);
+        assert_eq!(
+            file.dataset("free_vibration/applied_load").unwrap().read_raw::<f64>().unwrap()[3 * n * 4 + 2],
+            -10.0
+        );
+        assert_eq!(
+            file.dataset("folding/equilibrium_error").unwrap().read_raw::<f64>().unwrap()[4],
+            1e-12 * 10.0
+        );
         for group in ["model", "formfinding", "eigen", "free_vibration", "folding", "deployment"] {
             let g = file.group(group).unwrap();
             for name in g.member_names().unwrap() {
@@ -768,6 +892,28 @@ pub(super) mod tests {
         assert!(status.starts_with("failed: é") && status.len() <= STATUS_LEN && status.len() >= STATUS_LEN - 1);
     }
 
+    /// A model without supports has an empty `support` dimension (folding here still
+    /// prescribes one direction): the datasets exist and are written.
+    #[test]
+    fn a_model_without_supports_has_an_empty_support_dimension() {
+        let mut model = TowerSpec {
+            struts: 3,
+            stages: 1,
+            ..TowerSpec::paper()
+        }
+        .build();
+        model.nodes.iter_mut().for_each(|n| n.support = [false; 3]);
+        let path = temp_path("free.h5");
+        let mut rec = Hdf5Recorder::create(&path, "c", "").unwrap();
+        drive(&mut rec, &model, 5, 1).unwrap();
+        rec.finish(&Outcome::Complete).unwrap();
+        let file = File::open(&path).unwrap();
+        assert_eq!(file.dataset("deployment/reaction").unwrap().shape(), vec![6, 0]);
+        assert_eq!(file.dataset("deployment/support").unwrap().shape(), vec![0]);
+        assert_eq!(file.dataset("folding/reaction").unwrap().shape(), vec![6, 1]);
+        assert_eq!(file.dataset("deployment/applied_load").unwrap().shape(), vec![6, 6, 3]);
+    }
+
     #[test]
     fn dropped_recorder_is_not_complete() {
         let model = TowerSpec {
@@ -783,9 +929,10 @@ pub(super) mod tests {
             rest_lengths: &[1.0; 12],
             masses: &[1.0; 6],
             mass_reading: "physical",
+            constraints: &[],
         })
         .unwrap();
-        rec.begin_stage(Stage::FreeVibration).unwrap();
+        rec.begin_stage(Stage::FreeVibration, &Constraints::new(&model, &[])).unwrap();
         drop(rec);
         assert_eq!(status(&path), "failed: recorder dropped before finish");
     }

@@ -443,7 +443,7 @@ impl Recorder for McapRecorder {
         self.log_stage(Stage::Eigen, t)
     }
 
-    fn begin_stage(&mut self, stage: Stage) -> RecordResult {
+    fn begin_stage(&mut self, stage: Stage, _constraints: &crate::record::Constraints) -> RecordResult {
         self.clock.begin(stage.is_static());
         self.stage = Some(stage);
         self.log_stage(stage, self.clock.origin)
@@ -578,6 +578,7 @@ mod tests {
             rest_lengths: &[1.0; 12],
             masses: &[1.0; 6],
             mass_reading: "physical",
+            constraints: &[],
         })
         .unwrap();
         // Struts, then side cables (the second below the slack threshold), then rings.

@@ -1,4 +1,4 @@
-use super::{EigenRecord, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
+use super::{Constraints, EigenRecord, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
 
 /// Several recorders behind one: each call goes to all, in order.
 pub struct Recorders(pub Vec<Box<dyn Recorder + Send>>);
@@ -13,8 +13,8 @@ impl Recorder for Recorders {
     fn eigen(&mut self, r: &EigenRecord) -> RecordResult {
         self.0.iter_mut().try_for_each(|x| x.eigen(r))
     }
-    fn begin_stage(&mut self, s: Stage) -> RecordResult {
-        self.0.iter_mut().try_for_each(|x| x.begin_stage(s))
+    fn begin_stage(&mut self, s: Stage, c: &Constraints) -> RecordResult {
+        self.0.iter_mut().try_for_each(|x| x.begin_stage(s, c))
     }
     fn frame(&mut self, f: &Frame) -> RecordResult {
         self.0.iter_mut().try_for_each(|x| x.frame(f))

@@ -9,7 +9,7 @@ mod fanout;
 pub use crate::dynamics::Energy;
 pub use fanout::Recorders;
 
-use crate::model::Model;
+use crate::model::{Model, AXES};
 use nalgebra::Vector3;
 
 /// The stages as outputs name them.
@@ -47,6 +47,55 @@ impl Stage {
     }
 }
 
+/// A direction a stage holds fixed, where it records a reaction: a support, or a direction
+/// the stage prescribes (folding), whose reaction is the force that drives it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Constraint {
+    pub node: usize,
+    /// 0, 1, 2 for x, y, z.
+    pub axis: usize,
+    /// Prescribed by the stage (not a support of the model).
+    pub prescribed: bool,
+}
+
+/// The constrained directions of a stage, in DOF order (by node, then axis): the order of
+/// [`Frame::reactions`].
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Constraints(pub Vec<Constraint>);
+
+impl Constraints {
+    /// The supports of `model` and the `prescribed` (node, axis) directions (a support
+    /// that is also prescribed is listed once, as a support).
+    pub fn new(model: &Model, prescribed: &[(usize, usize)]) -> Self {
+        let mut list = Vec::new();
+        for (node, n) in model.nodes.iter().enumerate() {
+            for axis in 0..3 {
+                let prescribed = !n.support[axis] && prescribed.contains(&(node, axis));
+                if prescribed || n.support[axis] {
+                    list.push(Constraint { node, axis, prescribed });
+                }
+            }
+        }
+        Constraints(list)
+    }
+
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// "`<node id>.<axis>`" of each direction, e.g. `b0.z`.
+    pub fn labels(&self, model: &Model) -> Vec<String> {
+        self.0
+            .iter()
+            .map(|c| format!("{}.{}", model.nodes[c.node].id, AXES[c.axis]))
+            .collect()
+    }
+}
+
 /// One converged step of a time-stepping stage.
 #[derive(Clone, Copy, Debug)]
 pub struct Frame<'a> {
@@ -61,6 +110,16 @@ pub struct Frame<'a> {
     pub forces: &'a [f64],
     pub lengths: &'a [f64],
     pub energy: Energy,
+    /// External load applied on every node [N]: dead loads, weight, time-varying loads
+    /// (and, under ground motion, −m a_g on the free directions).
+    pub applied: &'a [Vector3<f64>],
+    /// Reaction at each constrained direction of the stage, in the order of the
+    /// [`Constraints`] given to [`Recorder::begin_stage`] [N]: the force the support (or the
+    /// prescribing device) exerts on the node.
+    pub reactions: &'a [f64],
+    /// |Σ reactions + Σ applied − Σ m a − Σ α m v| over the structure (a 3-vector's norm):
+    /// the out-of-balance of the whole structure, zero to the solver's tolerance [N].
+    pub equilibrium_error: f64,
 }
 
 /// Static description of the model written once per case.
@@ -73,6 +132,20 @@ pub struct ModelRecord<'a> {
     pub masses: &'a [f64],
     /// The config's `masses` reading they follow: `physical`, or `paper` (1000× lighter).
     pub mass_reading: &'a str,
+    /// The constrained directions of the time-stepping stages that constrain more than
+    /// the supports (folding); any other stage constrains the supports only. Known before
+    /// the stages run, since file layouts are fixed once streaming starts.
+    pub constraints: &'a [(Stage, Constraints)],
+}
+
+impl ModelRecord<'_> {
+    /// The constrained directions of `stage`.
+    pub fn constraints(&self, stage: Stage) -> Constraints {
+        self.constraints
+            .iter()
+            .find(|(s, _)| *s == stage)
+            .map_or_else(|| Constraints::new(self.model, &[]), |(_, c)| c.clone())
+    }
 }
 
 /// Results of form-finding, or of the equilibrium of a model given with rest lengths.
@@ -139,7 +212,8 @@ pub trait Recorder {
     fn eigen(&mut self, _record: &EigenRecord) -> RecordResult {
         Ok(())
     }
-    fn begin_stage(&mut self, _stage: Stage) -> RecordResult {
+    /// A time-stepping stage begins; its frames' reactions are at `constraints`.
+    fn begin_stage(&mut self, _stage: Stage, _constraints: &Constraints) -> RecordResult {
         Ok(())
     }
     fn frame(&mut self, _frame: &Frame) -> RecordResult {

@@ -63,7 +63,7 @@ pub struct CaseBar {
 }
 
 impl Recorder for CaseBar {
-    fn begin_stage(&mut self, stage: Stage) -> RecordResult {
+    fn begin_stage(&mut self, stage: Stage, _constraints: &crate::record::Constraints) -> RecordResult {
         self.stage = stage.name();
         self.bar.set_message(self.stage);
         Ok(())

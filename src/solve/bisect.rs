@@ -18,10 +18,16 @@ pub fn bisect<R, E>(
     step: &mut dyn FnMut(f64, f64) -> Result<R, E>,
     merge: &dyn Fn(R, R) -> R,
 ) -> Result<(R, bool), E> {
+    // The common case, a step that converges whole, allocates nothing (a time step must
+    // not: tests/allocation.rs).
+    let first = match step(from, to) {
+        Ok(r) => return Ok((r, false)),
+        Err(e) if max_cuts == 0 => return Err(e),
+        Err(_) => 0.5 * (from + to),
+    };
     // Sub-intervals still to take, the next one last, each with the halvings it has left.
-    let mut pending = vec![(from, to, max_cuts)];
+    let mut pending = vec![(first, to, max_cuts - 1), (from, first, max_cuts - 1)];
     let mut merged: Option<R> = None;
-    let mut cut = false;
     while let Some((a, b, cuts)) = pending.pop() {
         match step(a, b) {
             Ok(r) => {
@@ -35,12 +41,11 @@ pub fn bisect<R, E>(
                 let mid = 0.5 * (a + b);
                 pending.push((mid, b, cuts - 1));
                 pending.push((a, mid, cuts - 1));
-                cut = true;
             }
         }
     }
     // The stack empties only after a sub-step succeeded: the last one taken.
-    Ok((merged.expect("a sub-step succeeded"), cut))
+    Ok((merged.expect("a sub-step succeeded"), true))
 }
 
 #[cfg(test)]

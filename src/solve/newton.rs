@@ -165,6 +165,12 @@ pub trait Residual {
     fn symmetric(&self) -> bool {
         true
     }
+    /// The size of an increment `d` in metres, where some unknown is not a coordinate
+    /// (displacement control's load factor): the step limit and the increment test
+    /// measure lengths only. `None`: max |d_i|.
+    fn length_of(&self, _d: &[f64]) -> Option<f64> {
+        None
+    }
     /// The potential whose gradient is −r, at `u`, for a problem that has one (a static
     /// equilibrium minimises its total potential energy); `None` otherwise.
     fn energy(&mut self, _u: &[f64]) -> Option<f64> {
@@ -360,6 +366,7 @@ fn iterate(
         ws.d.copy_from_slice(&ws.r);
         ws.solver.solve(&mut ws.d)?;
         (increment, _) = max_abs(&ws.d).map_err(|dof| SolveError::NonFinite { iteration, dof: Some(dof) })?;
+        increment = problem.length_of(&ws.d).unwrap_or(increment);
         match energy {
             Some(e0) => {
                 let (moved, e, corrections) = line_search(problem, u, e0, ws)?;

@@ -5,11 +5,12 @@
 
 use super::eigen::{modes, tangent_matrix};
 use super::frames::{non_finite, FrameBuilder};
+use super::EquilibriumSummary;
 use super::{record_error, solve_error, Analysis, Settings, StaticEquilibrium};
 use crate::dynamics::Energy;
 use crate::error::{Error, Result};
 use crate::model::{height, Model};
-use crate::record::{Recorder, Stage};
+use crate::record::{Constraints, Recorder, Stage};
 use crate::solve::{bisect, newton, NewtonSettings, NewtonWorkspace, SolveError};
 use crate::structure::{State, Structure};
 use crate::tsm::{tangent_pattern, Assembly, DofMap};
@@ -54,6 +55,8 @@ pub struct FoldSummary {
     pub cut_steps: usize,
     /// Final height over initial height (max z − min z).
     pub height_ratio: f64,
+    #[serde(flatten)]
+    pub equilibrium: EquilibriumSummary,
     /// The lowest eigenvalues at every step, when asked for (`folding.eigen`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub modes: Vec<PathModes>,
@@ -74,6 +77,12 @@ pub struct PathModes {
 type Prescribed = Vec<(usize, usize, f64, f64)>;
 
 impl Folding {
+    /// The directions this stage constrains: the supports and the prescribed directions.
+    pub fn constraints(&self, model: &Model) -> Constraints {
+        let prescribed: Vec<(usize, usize)> = self.prescribe.iter().flat_map(|p| p.nodes.iter().map(|&n| (n, p.axis))).collect();
+        Constraints::new(model, &prescribed)
+    }
+
     /// Start and target of every prescribed direction from positions `x`.
     fn resolve(&self, x: &[Vector3<f64>]) -> Prescribed {
         let mut dofs: Prescribed = Vec::new();
@@ -194,7 +203,9 @@ impl Analysis for Folding {
             work: 0.0,
         };
         let strain0 = structure.strain_energy(&fold.problem.asm.x);
-        let mut frames = FrameBuilder::new(model.node_count());
+        let mut frames = FrameBuilder::new(structure, &dofs);
+        let applied = structure.constant_load();
+        frames.begin(recorder, Stage::Folding).map_err(record_error("folding"))?;
         let mut record = |fold: &Fold, step: usize, recorder: &mut dyn Recorder| {
             let energy = Energy {
                 kinetic: 0.0,
@@ -203,10 +214,9 @@ impl Analysis for Folding {
                 external: fold.work,
             };
             frames
-                .record(recorder, &fold.problem.asm, step, fold.fraction, None, energy)
+                .record(recorder, &fold.problem.asm, step, fold.fraction, energy, &applied)
                 .map_err(record_error("folding"))
         };
-        recorder.begin_stage(Stage::Folding).map_err(record_error("folding"))?;
         record(&fold, 0, recorder)?;
         let mut summary = FoldSummary {
             steps: self.steps,
@@ -234,6 +244,7 @@ impl Analysis for Folding {
             }
         }
         recorder.end_stage(Stage::Folding).map_err(record_error("folding"))?;
+        summary.equilibrium = frames.check.into();
         summary.height_ratio = height(&fold.problem.asm.x) / h0;
         Ok((State::at_rest(fold.problem.asm.x), summary))
     }

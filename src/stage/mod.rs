@@ -39,6 +39,29 @@ impl Default for Settings {
     }
 }
 
+/// The equilibrium check of a recording stage, in its summary: the largest out-of-balance
+/// of the whole structure over the recorded steps, Σ reactions + Σ applied loads − Σ m a −
+/// Σ α m v (a 3-vector's norm), in newtons and relative to the largest of |Σ applied|,
+/// |Σ reactions| and the largest |member force| of the same step. Static steps (folding):
+/// the sum of the Newton residual, ≤ 1e-10 relative.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct EquilibriumSummary {
+    /// [N]
+    #[serde(default)]
+    pub max_equilibrium_error: f64,
+    #[serde(default)]
+    pub max_equilibrium_error_relative: f64,
+}
+
+impl From<frames::EquilibriumCheck> for EquilibriumSummary {
+    fn from(c: frames::EquilibriumCheck) -> Self {
+        EquilibriumSummary {
+            max_equilibrium_error: c.max_error,
+            max_equilibrium_error_relative: c.max_relative,
+        }
+    }
+}
+
 /// One stage of the paper's Figure 1.
 pub trait Analysis {
     type Summary;

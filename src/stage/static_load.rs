@@ -5,7 +5,7 @@
 //! r = f_ext − p(u); what the stage applies stays on in every later stage.
 
 use super::frames::{non_finite, FrameBuilder};
-use super::{record_error, solve_error, Analysis, Settings, StaticEquilibrium};
+use super::{record_error, solve_error, Analysis, EquilibriumSummary, Settings, StaticEquilibrium};
 use crate::dynamics::Energy;
 use crate::error::{Error, Result};
 use crate::record::{Recorder, Stage};
@@ -47,6 +47,9 @@ pub struct StaticSummary {
     /// Lowest eigenvalue of K_T at the loaded equilibrium [N/m] (< 0: unstable) — the
     /// state every later stage starts from.
     pub lowest_stiffness: f64,
+    /// Σ reactions + Σ loads at every step.
+    #[serde(flatten)]
+    pub equilibrium: EquilibriumSummary,
 }
 
 impl StaticLoad {
@@ -102,6 +105,13 @@ impl Residual for PatternControl<'_> {
     fn symmetric(&self) -> bool {
         false
     }
+
+    /// λ is a load factor, not a length: the step limit and the increment test leave it out
+    /// (limited like a length, λ moved by at most max_step × model size per iteration).
+    fn length_of(&self, d: &[f64]) -> Option<f64> {
+        let coordinates = d.iter().enumerate().filter(|&(i, _)| i != self.dof);
+        Some(coordinates.fold(0.0, |m, (_, v)| m.max(v.abs())))
+    }
 }
 
 /// A sink that drops one column (the controlled coordinate's, replaced by λ's).
@@ -150,7 +160,7 @@ impl Steps<'_> {
             });
         }
         self.frames
-            .record(recorder, asm, self.recorded, fraction, None, energy)
+            .record(recorder, asm, self.recorded, fraction, energy, &self.applied)
             .map_err(record_error("static"))?;
         self.recorded += 1;
         Ok(())
@@ -310,10 +320,10 @@ impl Analysis for StaticLoad {
                 load_factor: 1.0,
                 ..Default::default()
             },
-            frames: FrameBuilder::new(n),
+            frames: FrameBuilder::new(structure, &dofs),
             recorded: 0,
         };
-        recorder.begin_stage(Stage::Static).map_err(record_error("static"))?;
+        steps.frames.begin(recorder, Stage::Static).map_err(record_error("static"))?;
         steps.record(&asm, 0.0, recorder)?;
         let constant = structure.constant_load();
         let x = match self.control {
@@ -334,6 +344,7 @@ impl Analysis for StaticLoad {
             }
         };
         recorder.end_stage(Stage::Static).map_err(record_error("static"))?;
+        steps.summary.equilibrium = steps.frames.check.into();
         let asm = Assembly::new(model, &structure.elements, &dofs, x);
         steps.summary.lowest_stiffness = super::eigen::lowest_stiffness(&super::eigen::tangent_matrix(&asm), &dofs, model)?.0;
         Ok((State::at_rest(asm.x), steps.summary))

@@ -3,7 +3,8 @@
 //! loads with time functions and ground motion, every converged step recorded, with the
 //! figures the checks need.
 
-use super::frames::{non_finite, FrameBuilder};
+use super::frames::{non_finite, FrameBuilder, Motion};
+use super::EquilibriumSummary;
 use super::{record_error, solve_error, Analysis, Settings};
 use crate::dynamics::{Damping, DampingTangent, Energy, FreeLoads, Integrator, Loads, Newmark, NewmarkParams, Rayleigh};
 use crate::error::{Error, Result};
@@ -89,6 +90,8 @@ pub struct TransientSummary {
     pub max_strut_compression: f64,
     /// Wall time of the stage, recording included [s].
     pub wall_seconds: f64,
+    #[serde(flatten)]
+    pub equilibrium: EquilibriumSummary,
 }
 
 impl TransientSummary {
@@ -168,20 +171,38 @@ impl Analysis for Transient {
             steps,
             ..Default::default()
         };
-        recorder.begin_stage(self.stage).map_err(record_error(name))?;
-        let mut frames = FrameBuilder::new(model.node_count());
-        let mut record = |nm: &Newmark, step: usize, recorder: &mut dyn Recorder| {
-            frames
-                .record(recorder, &nm.asm, step, nm.time, Some(&nm.v), nm.energy)
-                .map_err(record_error(name))
+        let mut frames = FrameBuilder::new(structure, &dofs);
+        frames.begin(recorder, self.stage).map_err(record_error(name))?;
+        // The load on every node at `load_time`, the time the step's equation took its load
+        // at (before time is re-anchored to the grid, which may move it by an ulp across a
+        // step load's end): the structure's constant load and the stage's loads on every
+        // direction (on a supported one it goes into the support), and under ground motion
+        // the inertia load −m a_g on the free ones (the supports move with the ground).
+        let mut applied = constant.clone();
+        let mut record = |nm: &Newmark, step: usize, load_time: f64, recorder: &mut dyn Recorder| {
+            applied.copy_from_slice(&constant);
+            self.loads.add_nodal(load_time, &mut applied);
+            let ground = self.loads.ground_acceleration(load_time);
+            if ground != Vector3::zeros() {
+                for i in 0..dofs.len() {
+                    let (n, a) = dofs.owner(i);
+                    applied[n][a] -= structure.masses[n] * ground[a];
+                }
+            }
+            let motion = Motion {
+                newmark: nm,
+                support_acceleration: ground,
+            };
+            frames.record_motion(recorder, motion, step, &applied).map_err(record_error(name))
         };
-        record(&nm, 0, recorder)?;
+        record(&nm, 0, 0.0, recorder)?;
         let mut mechanical = mechanical_energy(&nm.energy, load_end.1);
         for step in 1..=steps {
             let time = step as f64 * dt;
             let report = nm
                 .advance(dt, &load_free)
                 .map_err(solve_error(name, Some(step), Some(time), structure, &dofs))?;
+            let load_time = nm.time;
             // Re-anchor time to the step grid so that long runs do not drift.
             nm.time = time;
             if let Some(what) = non_finite(&nm.asm, Some(&nm.v), &nm.energy) {
@@ -194,10 +215,11 @@ impl Analysis for Transient {
             summary.factorizations += report.factorizations;
             summary.add_step(&nm, time, load_end, dt, &mut mechanical);
             if step % settings.every == 0 || step == steps {
-                record(&nm, step, recorder)?;
+                record(&nm, step, load_time, recorder)?;
             }
         }
         recorder.end_stage(self.stage).map_err(record_error(name))?;
+        summary.equilibrium = frames.check.into();
         summary.final_kinetic = nm.energy.kinetic;
         summary.wall_seconds = started.elapsed().as_secs_f64();
         Ok((final_state(&nm, &dofs), summary))

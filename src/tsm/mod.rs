@@ -199,3 +199,24 @@ pub fn tangent_product(model: &Model, states: &[MemberState], dofs: &DofMap, v: 
         scatter(dofs, mem.nodes, &f, out);
     }
 }
+
+/// out (over all 3n node directions, supported ones included) += the stiffness-proportional
+/// damping force of every member: [`objective_damping`]'s when `objective`, else
+/// [`tangent_product`]'s, with the same member forces. Each member's force is a pair
+/// (+f, −f) on its ends, so what reaches a supported direction is its share of the
+/// support's reaction.
+pub fn member_damping_all(model: &Model, states: &[MemberState], dofs: &DofMap, v: &[f64], factor: f64, objective: bool, out: &mut [f64]) {
+    for (mem, s) in model.members.iter().zip(states) {
+        let w = relative(dofs, v, mem.nodes);
+        let f = if objective {
+            s.dir * (factor * s.stiffness * s.dir.dot(&w))
+        } else {
+            member_block(s) * w * factor
+        };
+        let [a, b] = mem.nodes;
+        for ax in 0..3 {
+            out[3 * a + ax] -= f[ax];
+            out[3 * b + ax] += f[ax];
+        }
+    }
+}

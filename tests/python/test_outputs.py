@@ -92,7 +92,9 @@ def test_every_group_opens_in_xarray_with_named_dims(sample):
         "eigen": {"mode": 4, "node": 20, "xyz": 3},
     }
     for g in ["free_vibration", "folding", "deployment"]:
-        expected_dims[g] = {"time": len(recorded_steps(STEPS[g])), "node": 20, "member": 50, "xyz": 3}
+        # support: the tower's 8 supported directions (5 base nodes in z, b0_0 in x and y,
+        # b0_1 in one more).
+        expected_dims[g] = {"time": len(recorded_steps(STEPS[g])), "node": 20, "member": 50, "xyz": 3, "support": 8}
     for g in GROUPS:
         ds = xr.open_dataset(path, engine="h5netcdf", group=g)
         assert dict(ds.sizes) == expected_dims[g], g
@@ -109,6 +111,31 @@ def test_every_group_opens_in_xarray_with_named_dims(sample):
     assert deployment.velocity.dims == ("time", "node", "xyz")
     assert deployment.member_force.dims == ("time", "member")
     assert deployment.kinetic_energy.attrs["units"] == "J"
+
+
+def test_reactions_and_applied_loads_have_named_dims_and_units(sample):
+    """Issue 14: `reaction (time, support)` labelled by node and axis, `applied_load (time,
+    node, xyz)` and `equilibrium_error (time)`, in newtons. write_sample puts 1 N down on every
+    node and shares the 20 N among the vertical supports."""
+    path = sample / "result.h5"
+    for g in ["free_vibration", "folding", "deployment"]:
+        ds = xr.open_dataset(path, engine="h5netcdf", group=g)
+        assert ds.reaction.dims == ("time", "support"), g
+        assert ds.applied_load.dims == ("time", "node", "xyz"), g
+        assert ds.equilibrium_error.dims == ("time",), g
+        for name in ["reaction", "applied_load", "equilibrium_error"]:
+            assert ds[name].attrs["units"] == "N", f"{g}/{name}"
+        assert {"support", "support_node", "support_axis", "support_kind"} <= set(ds.coords), g
+        assert ds.support_node.dims == ("support",)
+        labels = [f"{n}.{a}" for n, a in zip(ds.support_node.values, ds.support_axis.values)]
+        assert list(ds.support.values) == labels
+        assert "b0_0.x" in labels and sum(a == "z" for a in ds.support_axis.values) == 5
+        assert set(ds.support_kind.values) == {"support"}
+        # Selection by label, and the balance of what was written: Σ R + Σ f = 0.
+        vertical = ds.reaction.sel(support=ds.support_axis == "z")
+        np.testing.assert_allclose(vertical.sum("support"), 20.0)
+        np.testing.assert_allclose(ds.applied_load.sel(xyz="z").sum("node"), -20.0)
+        assert float(ds.reaction.sel(support="b0_0.x")[0]) == 0.0
 
 
 def test_values_equal_the_written_ones(sample):
