@@ -70,7 +70,7 @@ fn main() {
         rest.push(l0);
         linear_density.push(mat.density * 1e-3 * mat.area);
     }
-    let mut structure = Structure::with_lumped_masses(model, Elements { laws, rest }, &linear_density);
+    let mut structure = Structure::with_lumped_masses(model, Elements { laws, rest }, &linear_density, &[]);
     structure.damping = Rayleigh {
         alpha: 1.612,
         beta: 0.0052,

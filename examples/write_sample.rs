@@ -64,6 +64,7 @@ fn main() -> Result<()> {
     })?;
     each(&mut |r| {
         r.formfinding(&FormFindRecord {
+            stage: Stage::FormFinding,
             residuals: &[1.0, 1e-3, 1e-9],
             positions: &x0,
             forces: &forces,

@@ -9,6 +9,7 @@ use crate::record::{FormFindRecord, ModelRecord, Recorder, Stage};
 use crate::stage::eigen::EigenSummary;
 use crate::stage::fold::FoldSummary;
 use crate::stage::formfind::{FormFindSummary, SelfEquilibrium};
+use crate::stage::static_load::StaticSummary;
 use crate::stage::substitute::{balanced_forces, SubstitutionSummary};
 use crate::stage::transient::TransientSummary;
 use crate::stage::{Analysis, Settings};
@@ -19,7 +20,13 @@ use nalgebra::Vector3;
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct CaseSummary {
     pub formfinding: Option<FormFindSummary>,
+    /// The equilibrium of a model given with rest lengths (instead of form-finding).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub equilibrium: Option<FormFindSummary>,
     pub substitution: SubstitutionSummary,
+    /// Gravity and static loads.
+    #[serde(default, rename = "static", skip_serializing_if = "Option::is_none")]
+    pub statics: Option<StaticSummary>,
     pub eigen: Option<EigenSummary>,
     pub free_vibration: Option<TransientSummary>,
     pub folding: Option<FoldSummary>,
@@ -45,11 +52,22 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     let settings = cfg.settings();
     let mut summary = CaseSummary::default();
     // 1–2. Form-finding and substitution by real materials (or the given rest lengths).
-    let (mut structure, equilibrium, found) = shape(cfg, &model, &settings, recorder)?;
-    summary.substitution = SubstitutionSummary::new(&structure, &equilibrium)?;
+    let (mut structure, unloaded, found) = shape(cfg, &model, &settings, recorder)?;
+    summary.substitution = SubstitutionSummary::new(&structure, &unloaded)?;
     summary.substitution.require_stable(cfg.substitution.allow_unstable)?;
-    record_structure(recorder, &structure, &equilibrium, found.as_ref(), cfg.masses.as_str())?;
-    summary.formfinding = found.map(|f| f.summary);
+    record_structure(recorder, &structure, &unloaded, &found, cfg.masses.as_str())?;
+    match found.stage {
+        Stage::FormFinding => summary.formfinding = Some(found.summary),
+        _ => summary.equilibrium = Some(found.summary),
+    }
+    // Gravity and static loads, which stay on from here.
+    structure.gravity = cfg.gravity();
+    let mut equilibrium = unloaded;
+    if let Some(loading) = cfg.static_stage(&model)? {
+        let (state, statics) = loading.run(&structure, equilibrium, &settings, recorder)?;
+        structure.dead_load = loading.dead_load(statics.load_factor);
+        (equilibrium, summary.statics) = (state, Some(statics));
+    }
     // 3. Eigen analysis at the equilibrium, and the Rayleigh damping it gives.
     if let Some(eigen) = cfg.eigen_stage() {
         let (_, eig) = eigen.run(&structure, equilibrium.clone(), &settings, recorder)?;
@@ -76,8 +94,11 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     Ok(summary)
 }
 
-/// What form-finding leaves for the records besides the state.
+/// What form-finding (or the given model's equilibrium) leaves for the records besides
+/// the state.
 struct FormFound {
+    /// `FormFinding` or `Equilibrium`.
+    stage: Stage,
     summary: FormFindSummary,
     /// Balanced member forces of the form-found shape [N].
     forces: Vec<f64>,
@@ -85,33 +106,33 @@ struct FormFound {
 
 /// The real structure and its equilibrium: form-found with measure potentials and
 /// substituted by real materials, or the equilibrium of the given rest lengths.
-fn shape(
-    cfg: &CaseConfig,
-    model: &Model,
-    settings: &Settings,
-    recorder: &mut dyn Recorder,
-) -> Result<(Structure, State, Option<FormFound>)> {
+fn shape(cfg: &CaseConfig, model: &Model, settings: &Settings, recorder: &mut dyn Recorder) -> Result<(Structure, State, FormFound)> {
     let start = State::at_rest(model.positions());
     let materials = cfg.materials(model)?;
     let Some(ff) = &cfg.formfinding else {
         let structure = materials.structure(model, cfg.rest_lengths());
-        let (equilibrium, _) = SelfEquilibrium::GIVEN.run(&structure, start, settings, recorder)?;
-        return Ok((structure, equilibrium, None));
+        let (equilibrium, found) = SelfEquilibrium::GIVEN.run(&structure, start, settings, recorder)?;
+        let summary = FormFindSummary::new(&found, &equilibrium, &found.forces);
+        let forces = found.forces;
+        let stage = Stage::Equilibrium;
+        return Ok((structure, equilibrium, FormFound { stage, summary, forces }));
     };
     let measure = Structure::massless(model.clone(), ff.measure.elements(model)?);
     let (shape, found) = SelfEquilibrium::FORM_FINDING.run(&measure, start, settings, recorder)?;
     let forces = balanced_forces(model, &shape.positions, &found.forces);
     let structure = materials.substitute(model, &shape, &forces, cfg.substitution.prestress_scale)?;
     let summary = FormFindSummary::new(&found, &shape, &forces);
-    Ok((structure, shape, Some(FormFound { summary, forces })))
+    let stage = Stage::FormFinding;
+    Ok((structure, shape, FormFound { stage, summary, forces }))
 }
 
-/// The model record (real rest lengths and masses), then form-finding's.
+/// The model record (real rest lengths and masses), then form-finding's (or the given
+/// model's equilibrium).
 fn record_structure(
     recorder: &mut dyn Recorder,
     structure: &Structure,
     shape: &State,
-    found: Option<&FormFound>,
+    found: &FormFound,
     mass_reading: &str,
 ) -> Result<()> {
     let model = ModelRecord {
@@ -121,18 +142,16 @@ fn record_structure(
         mass_reading,
     };
     recorder.model(&model).map_err(|source| Error::Record { stage: "model", source })?;
-    if let Some(f) = found {
-        let record = FormFindRecord {
-            residuals: &f.summary.residuals,
-            positions: &shape.positions,
-            forces: &f.forces,
-        };
-        recorder.formfinding(&record).map_err(|source| Error::Record {
-            stage: "form-finding",
-            source,
-        })?;
-    }
-    Ok(())
+    let record = FormFindRecord {
+        stage: found.stage,
+        residuals: &found.summary.residuals,
+        positions: &shape.positions,
+        forces: &found.forces,
+    };
+    recorder.formfinding(&record).map_err(|source| Error::Record {
+        stage: found.stage.name(),
+        source,
+    })
 }
 
 impl DeploymentSummary {

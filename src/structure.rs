@@ -61,6 +61,11 @@ impl Structure {
         f
     }
 
+    /// The constant load on each free DOF of `dofs` [N].
+    pub fn free_load(&self, dofs: &DofMap) -> Vec<f64> {
+        free_values(dofs, &self.constant_load())
+    }
+
     /// Lumped mass on each free DOF of `dofs`.
     pub fn free_masses(&self, dofs: &DofMap) -> Vec<f64> {
         free_masses(dofs, &self.masses)
@@ -81,6 +86,16 @@ pub fn lumped_masses(model: &Model, rest: &[f64], linear_density: &[f64]) -> Vec
         m[mem.nodes[1]] += half;
     }
     m
+}
+
+/// The free-DOF components of a per-node vector (zero for nodes past its end).
+pub fn free_values(dofs: &DofMap, f: &[Vector3<f64>]) -> Vec<f64> {
+    (0..dofs.len())
+        .map(|i| {
+            let (n, a) = dofs.owner(i);
+            f.get(n).map_or(0.0, |v| v[a])
+        })
+        .collect()
 }
 
 /// Lumped mass on each free DOF from nodal masses.

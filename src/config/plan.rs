@@ -2,17 +2,19 @@
 //! the stages. Every lookup by name (materials, node groups) happens here, on a config
 //! that `validate` has accepted.
 
+use super::loading::StaticSpec;
 use super::schema::{CaseConfig, FoldTarget, LoadSpec, RayleighSpec, TransientSpec};
 use crate::dynamics::{NodalLoad, Rayleigh};
 use crate::error::{Error, Result};
+use crate::law::ForceLaw;
 use crate::model::{MemberKind, Model};
 use crate::record::Stage;
 use crate::stage::eigen::{DampingFrom, Eigen};
 use crate::stage::fold::{Folding, Prescription, Target};
+use crate::stage::static_load::{Control, StaticLoad};
 use crate::stage::substitute::Materials;
 use crate::stage::transient::Transient;
 use crate::stage::Settings;
-use crate::law::ForceLaw;
 use nalgebra::Vector3;
 use std::sync::Arc;
 
@@ -45,7 +47,11 @@ impl CaseConfig {
             let mut spec = match (&a.material, &a.define) {
                 (Some(name), None) => find(name)?.clone(),
                 (None, Some(spec)) => spec.clone(),
-                _ => return Err(stage_error(format!("`substitution.assign[{k}]`: give `material` or `define`, one of them"))),
+                _ => {
+                    return Err(stage_error(format!(
+                        "`substitution.assign[{k}]`: give `material` or `define`, one of them"
+                    )))
+                }
             };
             if let Some(area) = a.area {
                 spec.area = area;
@@ -76,6 +82,43 @@ impl CaseConfig {
             }
         }
         Ok(m)
+    }
+
+    /// Acceleration of gravity [m/s²] (zero without `gravity`).
+    pub fn gravity(&self) -> Vector3<f64> {
+        self.gravity.map_or(Vector3::zeros(), Vector3::from)
+    }
+
+    /// The static-load stage: the `static` section, or gravity alone with its defaults.
+    pub fn static_stage(&self, model: &Model) -> Result<Option<StaticLoad>> {
+        let spec = match (&self.statics, self.gravity) {
+            (Some(spec), _) => spec.clone(),
+            (None, Some(_)) => StaticSpec::default(),
+            (None, None) => return Ok(None),
+        };
+        let mut loads = Vec::new();
+        if !spec.loads.is_empty() {
+            loads = vec![Vector3::zeros(); model.node_count()];
+            for l in &spec.loads {
+                for n in model.node_set(&l.nodes, &l.groups)? {
+                    loads[n] += Vector3::from(l.force);
+                }
+            }
+        }
+        let control = match &spec.control {
+            Some(c) => Some(Control {
+                node: model.node_set(std::slice::from_ref(&c.node), &[])?[0],
+                axis: c.axis.index(),
+                displacement: c.displacement,
+            }),
+            None => None,
+        };
+        Ok(Some(StaticLoad {
+            loads,
+            steps: spec.steps,
+            max_cuts: spec.max_cuts,
+            control,
+        }))
     }
 
     /// The rest lengths given with the members (a model without form-finding).

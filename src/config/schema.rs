@@ -535,7 +535,7 @@ mod tests {
             ),
         ] {
             let e: EigenSpec = serde_saphyr::from_str(yaml).unwrap();
-            assert_eq!(e.rayleigh, spec);
+            assert_eq!(e.rayleigh, Some(spec));
             assert_eq!(serde_saphyr::to_string(&e).unwrap(), written);
         }
 

@@ -78,12 +78,19 @@ impl CaseConfig {
         }
         for (name, t) in [("free_vibration", &self.free_vibration), ("deployment", &self.deployment)] {
             if let Some(t) = t {
-                check_transient(name, t, self.eigen.as_ref().is_some_and(|e| e.rayleigh.is_some()), model.as_ref(), &mut p);
+                check_transient(
+                    name,
+                    t,
+                    self.eigen.as_ref().is_some_and(|e| e.rayleigh.is_some()),
+                    model.as_ref(),
+                    &mut p,
+                );
             }
         }
         if let Some(f) = &self.folding {
             check_folding(f, model.as_ref(), &mut p);
         }
+        self.check_loading(model.as_ref(), &mut p);
         if let Some(ff) = &self.formfinding {
             check_measure(&ff.measure, &mut p);
         }
@@ -136,7 +143,7 @@ impl CaseConfig {
             ("substitution.cable", &self.substitution.cable),
         ] {
             match lib.get(name) {
-                Some(mat) => check_material(name, mat, p),
+                Some(mat) => check_material(&format!("materials.{name}"), mat, p),
                 None => p.add(
                     field,
                     format!(
@@ -147,6 +154,85 @@ impl CaseConfig {
             }
         }
         p.positive("substitution.prestress_scale", self.substitution.prestress_scale);
+        for (k, a) in self.substitution.assign.iter().enumerate() {
+            let field = format!("substitution.assign[{k}]");
+            match (&a.material, &a.define) {
+                (Some(name), None) if !lib.contains_key(name) => p.add(
+                    format!("{field}.material"),
+                    format!(
+                        "unknown material `{name}`; known: {}",
+                        lib.keys().cloned().collect::<Vec<_>>().join(", ")
+                    ),
+                ),
+                (Some(_), None) => {}
+                (None, Some(spec)) => check_material(&format!("{field}.define"), spec, p),
+                _ => p.add(field.clone(), "give `material` (a name) or `define` (a material), one of them"),
+            }
+            if let Some(area) = a.area {
+                p.positive(&format!("{field}.area"), area);
+            }
+        }
+    }
+
+    /// Gravity, point masses, the static stage and the material assignments' members.
+    fn check_loading(&self, model: Option<&Model>, p: &mut Problems) {
+        for (k, m) in self.point_masses.iter().enumerate() {
+            p.positive(&format!("point_masses[{k}].mass"), m.mass);
+        }
+        if self.formfinding.is_none() && self.substitution.prestress_scale != 1.0 {
+            p.add(
+                "substitution.prestress_scale",
+                "applies to form-found forces only; without `formfinding` the rest lengths set the prestress: remove it or scale the rest lengths",
+            );
+        }
+        if let Some(s) = &self.statics {
+            check_static(s, self.gravity.is_some(), p);
+        }
+        let Some(model) = model else { return };
+        for (k, a) in self.substitution.assign.iter().enumerate() {
+            if let Err(e) = model.member_set(&a.members, &a.groups) {
+                p.add(format!("substitution.assign[{k}]"), e.to_string());
+            }
+        }
+        for (k, m) in self.point_masses.iter().enumerate() {
+            if let Err(e) = model.node_set(&m.nodes, &m.groups) {
+                p.add(format!("point_masses[{k}]"), e.to_string());
+            }
+        }
+        if let Some(s) = &self.statics {
+            for (k, l) in s.loads.iter().enumerate() {
+                if let Err(e) = model.node_set(&l.nodes, &l.groups) {
+                    p.add(format!("static.loads[{k}]"), e.to_string());
+                }
+            }
+            if let Some(c) = &s.control {
+                match model.nodes.iter().find(|n| n.id == c.node) {
+                    None => p.add("static.control.node", format!("unknown node `{}`", c.node)),
+                    Some(n) if n.support[c.axis.index()] => p.add(
+                        "static.control.axis",
+                        format!(
+                            "node `{}` is supported in {}: control a free direction",
+                            n.id,
+                            crate::model::AXES[c.axis.index()]
+                        ),
+                    ),
+                    Some(_) => {}
+                }
+            }
+        }
+        if self.gravity.is_some() && !self.has_mass(model) {
+            p.add(
+                "gravity",
+                "the model has no mass for gravity to act on: every material has density 0 or is `massless`, and there are no `point_masses`",
+            );
+        }
+    }
+
+    /// Whether any member or point mass carries mass (what gravity acts on).
+    fn has_mass(&self, model: &Model) -> bool {
+        self.materials(model)
+            .map(|m| m.linear_density.iter().any(|&d| d > 0.0) || m.point_masses.iter().any(|&m| m > 0.0))
+            .unwrap_or(true)
     }
 
     /// Without form-finding the given shape is the equilibrium, so it needs rest lengths.
@@ -204,17 +290,18 @@ fn check_tower(t: &TowerSpec, p: &mut Problems) {
     }
 }
 
-fn check_material(name: &str, mat: &MaterialSpec, p: &mut Problems) {
-    p.positive(&format!("materials.{name}.area"), mat.area);
-    p.positive(&format!("materials.{name}.density"), mat.density);
+/// `at`: the material's field path (`materials.<name>`, `substitution.assign[k].define`).
+fn check_material(at: &str, mat: &MaterialSpec, p: &mut Problems) {
+    p.positive(&format!("{at}.area"), mat.area);
+    p.within(&format!("{at}.density"), mat.density, -1e-300, f64::INFINITY, "[0, ∞)");
     match &mat.law {
-        LawSpec::Elastic { youngs_modulus, .. } => p.positive(&format!("materials.{name}.law.elastic.youngs_modulus"), *youngs_modulus),
+        LawSpec::Elastic { youngs_modulus, .. } => p.positive(&format!("{at}.law.elastic.youngs_modulus"), *youngs_modulus),
         LawSpec::Ogden {
             junction,
             softening,
             terms,
         } => {
-            let field = |key: &str| format!("materials.{name}.law.ogden.{key}");
+            let field = |key: &str| format!("{at}.law.ogden.{key}");
             p.within(&field("junction"), *junction, 0.0, 1.0 + 1e-12, "(0, 1]");
             p.within(&field("softening"), *softening, 0.0, 1.0, "(0, 1)");
             if terms.is_empty() || terms.iter().any(|t| t.alpha == 0.0) {
@@ -374,6 +461,27 @@ fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option
             for e in l.groups.iter().filter_map(|g| model.group(g).err()) {
                 p.add(format!("{name}.load.groups"), e.to_string());
             }
+        }
+    }
+}
+
+fn check_static(s: &super::StaticSpec, gravity: bool, p: &mut Problems) {
+    if s.steps == 0 || s.steps > MAX_STEPS {
+        p.add("static.steps", format!("is {}; must lie in 1..={MAX_STEPS}", s.steps));
+    }
+    check_cuts("static.max_cuts", s.max_cuts, p);
+    if s.loads.is_empty() && !gravity {
+        p.add("static", "nothing to apply: give `loads` or `gravity`");
+    }
+    if s.control.is_some() && s.loads.is_empty() {
+        p.add("static.control", "displacement control scales the `loads` pattern: give `loads`");
+    }
+    if let Some(c) = &s.control {
+        if !(c.displacement != 0.0 && c.displacement.is_finite()) {
+            p.add(
+                "static.control.displacement",
+                format!("is {}; must be a finite number ≠ 0", c.displacement),
+            );
         }
     }
 }

@@ -181,7 +181,7 @@ impl Recorder for Hdf5Recorder {
         )?;
 
         let chunk = (CHUNK_BYTES / (24 * model.node_count().max(1))).clamp(1, CHUNK_STEPS);
-        for stage in [Stage::FreeVibration, Stage::Folding, Stage::Deployment] {
+        for stage in [Stage::Static, Stage::FreeVibration, Stage::Folding, Stage::Deployment] {
             let series = Series::create(
                 open.file.create_group(stage.name())?,
                 stage,
@@ -196,9 +196,9 @@ impl Recorder for Hdf5Recorder {
 
     fn formfinding(&mut self, record: &FormFindRecord) -> RecordResult {
         let open = self.open()?;
-        let mut g = Dims::new(open.static_group("formfinding")?);
+        let mut g = Dims::new(open.static_group(record.stage.name())?);
         let iterations: Vec<i64> = (0..record.residuals.len() as i64).collect();
-        g.coord("iteration", &iterations, "1", "form-finding iteration")?;
+        g.coord("iteration", &iterations, "1", "Newton iteration")?;
         g.labels("node", &open.node_ids, "node id")?;
         g.labels("member", &open.member_ids, "member id")?;
         g.labels("xyz", &AXES, "coordinate axis")?;
@@ -265,7 +265,9 @@ impl Recorder for Hdf5Recorder {
             .iter()
             .position(|(s, _)| *s == stage)
             .ok_or_else(|| format!("HDF5: {} is not a time-stepping stage (or model() was not recorded)", stage.name()))?;
-        if !open.swmr {
+        // The static stage is short and comes before the eigen group is written (groups
+        // cannot be created once SWMR has started): readers follow the long stages only.
+        if !open.swmr && stage != Stage::Static {
             open.file.start_swmr()?;
             open.swmr = true;
         }
@@ -318,10 +320,10 @@ impl Series {
     /// member_force, member_length, kinetic, strain, damping, external. Folding, a static
     /// stage, has `fraction` and no `velocity`.
     fn create(group: Group, stage: Stage, node_ids: &[String], member_ids: &[String], chunk: usize) -> Result<Self, Error> {
-        let folding = stage == Stage::Folding;
+        let folding = stage.is_static();
         let mut g = Dims::new(group);
         let (units, long_name) = if folding {
-            ("1", "folding step")
+            ("1", "static step")
         } else {
             ("s", "simulated time since the stage began")
         };
@@ -332,7 +334,11 @@ impl Series {
         g.labels("xyz", &AXES, "coordinate axis")?;
         let mut columns = vec![time];
         if folding {
-            columns.push(g.streamed("fraction", &[], chunk, "1", "applied fraction of the prescribed displacement")?);
+            let what = match stage {
+                Stage::Folding => "applied fraction of the prescribed displacement",
+                _ => "load factor: applied fraction of the total load (under displacement control: the factor on the `loads` pattern)",
+            };
+            columns.push(g.streamed("fraction", &[], chunk, "1", what)?);
         }
         columns.push(g.streamed("position", &["node", "xyz"], chunk, "m", "node position")?);
         if !folding {
@@ -605,6 +611,7 @@ pub(super) mod tests {
             .map(|mb| if mb.kind == crate::model::MemberKind::Strut { -10.0 } else { 5.0 })
             .collect();
         rec.formfinding(&FormFindRecord {
+            stage: Stage::FormFinding,
             residuals: &[1.0, 1e-3, 1e-9],
             positions: &x0,
             forces: &forces,

@@ -433,9 +433,9 @@ impl Recorder for McapRecorder {
 
     fn formfinding(&mut self, record: &FormFindRecord) -> RecordResult {
         let t = self.clock.static_step();
-        self.log_stage(Stage::FormFinding, t)?;
+        self.log_stage(record.stage, t)?;
         let ns = self.clock.step_stamp(t);
-        self.log_state(Stage::FormFinding, 0, ns, record.positions, record.forces, None)
+        self.log_state(record.stage, 0, ns, record.positions, record.forces, None)
     }
 
     fn eigen(&mut self, _record: &crate::record::EigenRecord) -> RecordResult {
@@ -444,7 +444,7 @@ impl Recorder for McapRecorder {
     }
 
     fn begin_stage(&mut self, stage: Stage) -> RecordResult {
-        self.clock.begin(stage == Stage::Folding);
+        self.clock.begin(stage.is_static());
         self.stage = Some(stage);
         self.log_stage(stage, self.clock.origin)
     }

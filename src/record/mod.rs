@@ -16,6 +16,10 @@ use nalgebra::Vector3;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stage {
     FormFinding,
+    /// The equilibrium of a model given with rest lengths (no form-finding).
+    Equilibrium,
+    /// Gravity and static loads applied after substitution.
+    Static,
     Eigen,
     FreeVibration,
     Folding,
@@ -23,15 +27,23 @@ pub enum Stage {
 }
 
 impl Stage {
-    /// Group / topic name: `formfinding`, `eigen`, `free_vibration`, `folding`, `deployment`.
+    /// Group / topic name: `formfinding`, `equilibrium`, `static`, `eigen`,
+    /// `free_vibration`, `folding`, `deployment`.
     pub fn name(self) -> &'static str {
         match self {
             Stage::FormFinding => "formfinding",
+            Stage::Equilibrium => "equilibrium",
+            Stage::Static => "static",
             Stage::Eigen => "eigen",
             Stage::FreeVibration => "free_vibration",
             Stage::Folding => "folding",
             Stage::Deployment => "deployment",
         }
+    }
+
+    /// A stage of static steps (no velocities; `time` is the applied fraction).
+    pub fn is_static(self) -> bool {
+        matches!(self, Stage::Folding | Stage::Static)
     }
 }
 
@@ -63,9 +75,11 @@ pub struct ModelRecord<'a> {
     pub mass_reading: &'a str,
 }
 
-/// Results of form-finding.
+/// Results of form-finding, or of the equilibrium of a model given with rest lengths.
 #[derive(Clone, Copy, Debug)]
 pub struct FormFindRecord<'a> {
+    /// `FormFinding` or `Equilibrium`: the group it is written to.
+    pub stage: Stage,
     pub residuals: &'a [f64],
     pub positions: &'a [Vector3<f64>],
     pub forces: &'a [f64],

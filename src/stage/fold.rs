@@ -108,6 +108,16 @@ impl Fold<'_> {
                     let dx = (to - from) * (end - start);
                     self.work += 0.5 * (before[k] + reaction(&self.problem.asm, n, a)) * dx;
                 }
+                // The constant loads' work on the free DOFs (on the prescribed ones it is
+                // part of the reactions' p).
+                self.work += self
+                    .problem
+                    .load
+                    .iter()
+                    .zip(&self.u)
+                    .zip(&u_old)
+                    .map(|((f, u), u0)| f * (u - u0))
+                    .sum::<f64>();
                 self.fraction = to;
                 Ok(report.iterations)
             }
@@ -143,8 +153,8 @@ impl Analysis for Folding {
             u: asm.free_coordinates(),
             ws: NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_pattern(model, &dofs)),
             problem: StaticEquilibrium {
+                load: structure.free_load(&dofs),
                 asm,
-                load: vec![0.0; dofs.len()],
             },
             prescribed: &prescribed,
             newton: settings.newton,

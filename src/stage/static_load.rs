@@ -1,0 +1,352 @@
+//! The static-load stage (after substitution): gravity and nodal loads applied to the
+//! unloaded equilibrium in load steps, or a nodal load pattern whose factor λ follows the
+//! displacement of one node direction (displacement control), which passes limit points
+//! where load control stops. Both are the common Newton driver on the TSM residual
+//! r = f_ext − p(u); what the stage applies stays on in every later stage.
+
+use super::frames::{non_finite, FrameBuilder};
+use super::{record_error, solve_error, Analysis, Settings, StaticEquilibrium};
+use crate::dynamics::Energy;
+use crate::error::{Error, Result};
+use crate::record::{Recorder, Stage};
+use crate::solve::{bisect, newton, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
+use crate::structure::{free_values, State, Structure};
+use crate::tsm::{tangent_pattern, Assembly, DofMap};
+use nalgebra::Vector3;
+
+/// The static-load stage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StaticLoad {
+    /// Nodal load pattern this stage adds [N per node] (empty: gravity only).
+    pub loads: Vec<Vector3<f64>>,
+    /// Load (or displacement) steps.
+    pub steps: usize,
+    /// A failed step is halved up to this many times.
+    pub max_cuts: u32,
+    pub control: Option<Control>,
+}
+
+/// Displacement control: the free direction `axis` of `node` moves by `displacement` [m].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Control {
+    pub node: usize,
+    pub axis: usize,
+    pub displacement: f64,
+}
+
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct StaticSummary {
+    pub steps: usize,
+    pub newton_iterations: usize,
+    /// Steps that needed sub-stepping.
+    pub cut_steps: usize,
+    /// Factor λ on the `loads` pattern at the end (1 under load control).
+    pub load_factor: f64,
+    /// Largest node displacement from the unloaded equilibrium [m].
+    pub max_displacement: f64,
+    /// Lowest eigenvalue of K_T at the loaded equilibrium [N/m] (< 0: unstable) — the
+    /// state every later stage starts from.
+    pub lowest_stiffness: f64,
+}
+
+impl StaticLoad {
+    /// The loads that stay on after the stage ended at load factor `lambda`.
+    pub fn dead_load(&self, lambda: f64) -> Vec<Vector3<f64>> {
+        self.loads.iter().map(|f| f * lambda).collect()
+    }
+}
+
+/// Static equilibrium with the load pattern's factor λ as the unknown in place of the
+/// controlled coordinate (held at `coordinate`): r = f_c + λ f_p − p(u). Its tangent is
+/// K_T with the controlled column replaced by −f_p: not symmetric, no potential.
+struct PatternControl<'a> {
+    asm: Assembly<'a>,
+    constant: Vec<f64>,
+    pattern: Vec<f64>,
+    /// The controlled free DOF, whose slot in the unknowns holds λ.
+    dof: usize,
+    coordinate: f64,
+    /// The unknowns with the controlled coordinate in place of λ.
+    coordinates: Vec<f64>,
+}
+
+impl PatternControl<'_> {
+    fn load(&self, lambda: f64) -> impl Iterator<Item = f64> + '_ {
+        self.constant.iter().zip(&self.pattern).map(move |(c, p)| c + lambda * p)
+    }
+}
+
+impl Residual for PatternControl<'_> {
+    fn residual(&mut self, u: &[f64], r: &mut [f64]) -> Scale {
+        self.coordinates.copy_from_slice(u);
+        self.coordinates[self.dof] = self.coordinate;
+        self.asm.set_free(&self.coordinates);
+        let lambda = u[self.dof];
+        let mut applied = 0.0_f64;
+        for (i, f) in self.load(lambda).enumerate() {
+            r[i] = f - self.asm.p_free(i);
+            applied = applied.max(f.abs());
+        }
+        self.asm.scale(applied)
+    }
+
+    fn tangent(&mut self, k: &mut dyn TangentSink) {
+        self.asm.add_tangent(1.0, &mut WithoutColumn { sink: k, col: self.dof });
+        for (i, &p) in self.pattern.iter().enumerate() {
+            if p != 0.0 {
+                k.add(i, self.dof, -p);
+            }
+        }
+    }
+
+    fn symmetric(&self) -> bool {
+        false
+    }
+}
+
+/// A sink that drops one column (the controlled coordinate's, replaced by λ's).
+struct WithoutColumn<'s> {
+    sink: &'s mut dyn TangentSink,
+    col: usize,
+}
+
+impl TangentSink for WithoutColumn<'_> {
+    fn add(&mut self, row: usize, col: usize, value: f64) {
+        if col != self.col {
+            self.sink.add(row, col, value);
+        }
+    }
+}
+
+/// What the stage carries from step to step.
+struct Steps<'a> {
+    structure: &'a Structure,
+    dofs: &'a DofMap,
+    newton: NewtonSettings,
+    /// The load on every node at the current point [N].
+    applied: Vec<Vector3<f64>>,
+    /// Work of the applied loads so far (trapezoidal) [J].
+    work: f64,
+    start: Vec<Vector3<f64>>,
+    strain0: f64,
+    summary: StaticSummary,
+    frames: FrameBuilder,
+    recorded: usize,
+}
+
+impl Steps<'_> {
+    /// Records the state of `asm` under the current loads.
+    fn record(&mut self, asm: &Assembly, fraction: f64, recorder: &mut dyn Recorder) -> Result<()> {
+        let energy = Energy {
+            kinetic: 0.0,
+            strain: asm.strain_energy() - self.strain0,
+            damping: 0.0,
+            external: self.work,
+        };
+        if let Some(what) = non_finite(asm, None, &energy) {
+            return Err(Error::Stage {
+                stage: "static",
+                reason: format!("step {}: {what} is not finite", self.recorded),
+            });
+        }
+        self.frames
+            .record(recorder, asm, self.recorded, fraction, None, energy)
+            .map_err(record_error("static"))?;
+        self.recorded += 1;
+        Ok(())
+    }
+
+    /// Takes in a converged step to positions `x` under loads `applied`.
+    fn advance(&mut self, x: &[Vector3<f64>], applied: Vec<Vector3<f64>>, previous: &[Vector3<f64>]) {
+        for n in 0..x.len() {
+            self.work += 0.5 * (self.applied[n] + applied[n]).dot(&(x[n] - previous[n]));
+            let d = (x[n] - self.start[n]).norm();
+            self.summary.max_displacement = self.summary.max_displacement.max(d);
+        }
+        self.applied = applied;
+    }
+
+    /// Load control: the total load `target` applied in `steps` proportional steps from
+    /// `asm`'s state under the current loads. Returns the final positions.
+    fn load_control(
+        &mut self,
+        asm: Assembly<'_>,
+        target: &[Vector3<f64>],
+        steps: usize,
+        max_cuts: u32,
+        recorder: &mut dyn Recorder,
+    ) -> Result<Vec<Vector3<f64>>> {
+        let dofs = self.dofs;
+        let base = self.applied.clone();
+        let at = |s: f64| -> Vec<Vector3<f64>> { base.iter().zip(target).map(|(b, t)| b + (t - b) * s).collect() };
+        let model = &self.structure.model;
+        let mut ws = NewtonWorkspace::new(dofs.len(), &self.newton, false, || tangent_pattern(model, dofs));
+        let mut u = asm.free_coordinates();
+        let mut problem = StaticEquilibrium {
+            asm,
+            load: free_values(dofs, &base),
+        };
+        let newton_settings = self.newton;
+        let length = model.size();
+        for step in 1..=steps {
+            let previous = problem.asm.x.clone();
+            let mut solve = |_: f64, to: f64| -> Result<usize, SolveError> {
+                problem.load = free_values(dofs, &at(to));
+                let saved = u.clone();
+                newton(&mut problem, &mut u, &newton_settings, length, &mut ws)
+                    .map(|r| r.iterations)
+                    .inspect_err(|_| u.clone_from(&saved))
+            };
+            let from = (step - 1) as f64 / steps as f64;
+            let (iterations, cut) = bisect(from, step as f64 / steps as f64, max_cuts, &mut solve, &|a, b| a + b).map_err(solve_error(
+                "static",
+                Some(self.recorded),
+                None,
+                self.structure,
+                dofs,
+            ))?;
+            problem.asm.set_free(&u);
+            self.summary.newton_iterations += iterations;
+            self.summary.cut_steps += usize::from(cut);
+            self.advance(&problem.asm.x, at(step as f64 / steps as f64), &previous);
+            self.record(&problem.asm, step as f64 / steps as f64, recorder)?;
+        }
+        Ok(problem.asm.x)
+    }
+
+    /// Displacement control: the `pattern` load's factor follows `control` in `steps`
+    /// equal steps, on top of the current loads. Returns the final positions and λ.
+    fn displacement_control(
+        &mut self,
+        asm: Assembly<'_>,
+        pattern: &[Vector3<f64>],
+        control: Control,
+        steps: usize,
+        max_cuts: u32,
+        recorder: &mut dyn Recorder,
+    ) -> Result<(Vec<Vector3<f64>>, f64)> {
+        let dofs = self.dofs;
+        let model = &self.structure.model;
+        let dof = dofs.free(control.node, control.axis).ok_or_else(|| Error::Stage {
+            stage: "static",
+            reason: format!(
+                "the controlled direction, node `{}` {}, is supported; control a free direction",
+                model.nodes[control.node].id,
+                crate::model::AXES[control.axis]
+            ),
+        })?;
+        let base = self.applied.clone();
+        let start = asm.x[control.node][control.axis];
+        let pattern_free = free_values(dofs, pattern);
+        let pattern_rows: Vec<(usize, usize)> = pattern_free
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| **p != 0.0)
+            .map(|(i, _)| (i, dof))
+            .collect();
+        let mut ws = NewtonWorkspace::new(dofs.len(), &self.newton, false, || tangent_pattern(model, dofs).chain(pattern_rows));
+        let mut u = asm.free_coordinates();
+        u[dof] = 0.0;
+        let mut problem = PatternControl {
+            constant: free_values(dofs, &base),
+            pattern: pattern_free,
+            dof,
+            coordinate: start,
+            coordinates: u.clone(),
+            asm,
+        };
+        let newton_settings = self.newton;
+        let length = model.size();
+        for step in 1..=steps {
+            let previous = problem.asm.x.clone();
+            let mut solve = |_: f64, to: f64| -> Result<usize, SolveError> {
+                problem.coordinate = start + to * control.displacement;
+                let saved = u.clone();
+                newton(&mut problem, &mut u, &newton_settings, length, &mut ws)
+                    .map(|r| r.iterations)
+                    .inspect_err(|_| u.clone_from(&saved))
+            };
+            let from = (step - 1) as f64 / steps as f64;
+            let to = step as f64 / steps as f64;
+            let (iterations, cut) = bisect(from, to, max_cuts, &mut solve, &|a, b| a + b).map_err(solve_error(
+                "static",
+                Some(self.recorded),
+                None,
+                self.structure,
+                dofs,
+            ))?;
+            // The converged iterate was the last evaluated: the assembly is at `u`.
+            let lambda = u[dof];
+            self.summary.newton_iterations += iterations;
+            self.summary.cut_steps += usize::from(cut);
+            let applied = base.iter().zip(pattern).map(|(b, p)| b + p * lambda).collect();
+            self.advance(&problem.asm.x, applied, &previous);
+            self.record(&problem.asm, lambda, recorder)?;
+        }
+        Ok((problem.asm.x, u[dof]))
+    }
+}
+
+impl Analysis for StaticLoad {
+    type Summary = StaticSummary;
+
+    /// From an equilibrium without load (`state`), applies the structure's constant load
+    /// (weight, dead loads) and this stage's pattern.
+    fn run(&self, structure: &Structure, state: State, settings: &Settings, recorder: &mut dyn Recorder) -> Result<(State, StaticSummary)> {
+        let model = &structure.model;
+        let dofs = DofMap::new(model, &[]);
+        let n = model.node_count();
+        let asm = Assembly::new(model, &structure.elements, &dofs, state.positions.clone());
+        let mut steps = Steps {
+            structure,
+            dofs: &dofs,
+            newton: settings.newton,
+            applied: vec![Vector3::zeros(); n],
+            work: 0.0,
+            start: state.positions.clone(),
+            strain0: asm.strain_energy(),
+            summary: StaticSummary {
+                steps: self.steps,
+                load_factor: 1.0,
+                ..Default::default()
+            },
+            frames: FrameBuilder::new(n),
+            recorded: 0,
+        };
+        recorder.begin_stage(Stage::Static).map_err(record_error("static"))?;
+        steps.record(&asm, 0.0, recorder)?;
+        let constant = structure.constant_load();
+        let x = match self.control {
+            None => {
+                let total: Vec<Vector3<f64>> = constant.iter().zip(self.pattern(n)).map(|(c, p)| c + p).collect();
+                steps.load_control(asm, &total, self.steps, self.max_cuts, recorder)?
+            }
+            Some(control) => {
+                let x = if constant.iter().any(|f| *f != Vector3::zeros()) {
+                    steps.load_control(asm, &constant, self.steps, self.max_cuts, recorder)?
+                } else {
+                    asm.x.clone()
+                };
+                let asm = Assembly::new(model, &structure.elements, &dofs, x);
+                let (x, lambda) = steps.displacement_control(asm, &self.pattern(n), control, self.steps, self.max_cuts, recorder)?;
+                steps.summary.load_factor = lambda;
+                x
+            }
+        };
+        recorder.end_stage(Stage::Static).map_err(record_error("static"))?;
+        let asm = Assembly::new(model, &structure.elements, &dofs, x);
+        steps.summary.lowest_stiffness = super::eigen::lowest_stiffness(&super::eigen::tangent_matrix(&asm), &dofs, model)?.0;
+        Ok((State::at_rest(asm.x), steps.summary))
+    }
+}
+
+impl StaticLoad {
+    /// The pattern over `n` nodes (zeros when empty).
+    fn pattern(&self, n: usize) -> Vec<Vector3<f64>> {
+        if self.loads.is_empty() {
+            vec![Vector3::zeros(); n]
+        } else {
+            self.loads.clone()
+        }
+    }
+}

@@ -1,0 +1,187 @@
+//! The static-load stage against closed forms: a hanging bar under gravity and a point
+//! mass (load control), and the von Mises truss through its limit point and snap-through
+//! (displacement control), where load control must stop.
+
+use nalgebra::Vector3;
+use std::sync::Arc;
+use tsim::law::{ForceLaw, LinearElastic};
+use tsim::model::{Member, MemberKind, Model, Node};
+use tsim::record::{Frame, RecordResult, Recorder};
+use tsim::stage::static_load::{Control, StaticLoad};
+use tsim::stage::{Analysis, Settings};
+use tsim::structure::{State, Structure};
+use tsim::tsm::Elements;
+
+/// Keeps the positions and load factor of every recorded step.
+#[derive(Default)]
+struct Path {
+    steps: Vec<(f64, Vec<Vector3<f64>>)>,
+}
+
+impl Recorder for Path {
+    fn frame(&mut self, frame: &Frame) -> RecordResult {
+        self.steps.push((frame.time, frame.positions.to_vec()));
+        Ok(())
+    }
+}
+
+fn node(id: &str, xyz: [f64; 3], support: [bool; 3]) -> Node {
+    Node {
+        id: id.into(),
+        xyz: Vector3::from(xyz),
+        support,
+    }
+}
+
+fn bar(id: &str, nodes: [usize; 2]) -> Member {
+    Member {
+        id: id.into(),
+        nodes,
+        kind: MemberKind::Strut,
+        groups: vec![],
+    }
+}
+
+fn elastic(ea: f64, count: usize, rest: Vec<f64>) -> Elements {
+    let law: Arc<dyn ForceLaw> = Arc::new(LinearElastic { ea, tension_only: false });
+    Elements {
+        laws: vec![law; count],
+        rest,
+    }
+}
+
+/// A vertical bar of rest length L0 hangs from a fixed node with a point mass M at its
+/// free end (moving only vertically). Its own mass ρA·L0 is lumped half to each end, so
+/// the end carries N = (M + ρA L0/2) g and, N = EA (l − L0)/L0 being exact for this law,
+/// l = L0 (1 + N/EA). Load control in 4 steps must land there.
+#[test]
+fn hanging_bar_stretches_by_its_weight() {
+    let (l0, ea, rho_a, point, g) = (2.0, 1.0e5, 3.0, 40.0, 9.81);
+    let model = Model {
+        nodes: vec![
+            node("top", [0.0, 0.0, 0.0], [true; 3]),
+            node("end", [0.0, 0.0, -l0], [true, true, false]),
+        ],
+        members: vec![bar("bar", [0, 1])],
+        node_groups: Default::default(),
+    };
+    let mut structure = Structure::with_lumped_masses(model.clone(), elastic(ea, 1, vec![l0]), &[rho_a], &[0.0, point]);
+    structure.gravity = Vector3::new(0.0, 0.0, -g);
+    let stage = StaticLoad {
+        loads: vec![],
+        steps: 4,
+        max_cuts: 0,
+        control: None,
+    };
+    let mut path = Path::default();
+    let (state, summary) = stage
+        .run(&structure, State::at_rest(model.positions()), &Settings::default(), &mut path)
+        .unwrap();
+    let n = (point + 0.5 * rho_a * l0) * g;
+    let expected = l0 * (1.0 + n / ea);
+    // The Newton tolerance is 1e-10 of the force; the length follows to that relative
+    // order (times EA/N ~ 5 here), so 1e-9 relative leaves no room for a wrong load.
+    assert!(
+        ((-state.positions[1].z) - expected).abs() <= 1e-9 * expected,
+        "{} vs {expected}",
+        -state.positions[1].z
+    );
+    assert_eq!(path.steps.len(), 5, "the unloaded state and 4 load steps");
+    assert_eq!(path.steps.iter().map(|s| s.0).collect::<Vec<_>>(), [0.0, 0.25, 0.5, 0.75, 1.0]);
+    assert_eq!(summary.load_factor, 1.0);
+}
+
+/// The von Mises truss: two bars from (∓a, 0, 0) to an apex at (0, 0, h), the apex
+/// pushed down by P. With the apex at height z, l = √(a² + z²) and N = EA (l − L0)/L0,
+/// vertical equilibrium gives P(z) = −2 N z / l. P rises to a limit point, falls through
+/// zero at z = 0 (both bars flat) and turns negative: load control cannot pass the
+/// limit, displacement control follows the whole curve to the mirror image z = −h.
+fn von_mises() -> (Structure, f64, f64, f64) {
+    let (a, h, ea) = (2.0, 0.5, 1.0e6);
+    let model = Model {
+        nodes: vec![
+            node("left", [-a, 0.0, 0.0], [true; 3]),
+            node("right", [a, 0.0, 0.0], [true; 3]),
+            node("apex", [0.0, 0.0, h], [false, true, false]),
+        ],
+        members: vec![bar("l", [0, 2]), bar("r", [1, 2])],
+        node_groups: Default::default(),
+    };
+    let l0 = (a * a + h * h).sqrt();
+    let structure = Structure::massless(model, elastic(ea, 2, vec![l0, l0]));
+    (structure, a, h, ea)
+}
+
+fn load_down(p: f64) -> Vec<Vector3<f64>> {
+    vec![Vector3::zeros(), Vector3::zeros(), Vector3::new(0.0, 0.0, -p)]
+}
+
+#[test]
+fn displacement_control_passes_the_limit_point_of_the_von_mises_truss() {
+    let (structure, a, h, ea) = von_mises();
+    let l0 = (a * a + h * h).sqrt();
+    let p_of = |z: f64| {
+        let l = (a * a + z * z).sqrt();
+        -2.0 * ea * (l - l0) / l0 * z / l
+    };
+    let reference = 1000.0;
+    let stage = StaticLoad {
+        loads: load_down(reference),
+        steps: 40,
+        max_cuts: 4,
+        control: Some(Control {
+            node: 2,
+            axis: 2,
+            displacement: -2.0 * h,
+        }),
+    };
+    let mut path = Path::default();
+    let start = State::at_rest(structure.model.positions());
+    let (state, summary) = stage.run(&structure, start, &Settings::default(), &mut path).unwrap();
+    assert_eq!(path.steps.len(), 41);
+    let (mut peak, mut trough) = (0.0_f64, 0.0_f64);
+    for (k, (lambda, x)) in path.steps.iter().enumerate() {
+        let z = x[2].z;
+        let expected_z = h - 2.0 * h * k as f64 / 40.0;
+        // The controlled coordinate is imposed, exactly up to the rounding of start + s·d.
+        assert!((z - expected_z).abs() <= 4.0 * f64::EPSILON * h, "step {k}: z = {z}");
+        // λ·reference is the apex load; the residual tolerance is 1e-10 of the largest
+        // force (the bars' N, ~1e4 N at the flat state), which bounds the load error.
+        let n_scale = ea * (l0 - a) / l0;
+        assert!(
+            (lambda * reference - p_of(z)).abs() <= 1e-9 * n_scale,
+            "step {k}: λP = {} vs P(z) = {}",
+            lambda * reference,
+            p_of(z)
+        );
+        assert!(x[2].x.abs() <= 1e-12, "the apex stays on the axis of symmetry");
+        peak = peak.max(lambda * reference);
+        trough = trough.min(lambda * reference);
+    }
+    // The path passed both limit points: up to +P_max, through zero at the flat state,
+    // down to −P_max (the curve is odd in z), back to zero at the mirror image. 0.99:
+    // the 40 steps of 2.5 cm sample the peak to within 0.2 %.
+    let limit = (0..4000).map(|i| p_of(h * i as f64 / 4000.0)).fold(0.0, f64::max);
+    assert!(
+        peak > 0.99 * limit && trough < -0.99 * limit,
+        "peak {peak}, trough {trough}, limit {limit}"
+    );
+    assert!(summary.load_factor.abs() * reference <= 1e-9 * ea, "unstressed at the mirror image");
+    assert!((state.positions[2].z + h).abs() <= 4.0 * f64::EPSILON * h);
+
+    // Load control to more than the limit load has no equilibrium near the upper branch:
+    // the energy line search snaps through to the inverted branch (z < −h), where the
+    // same closed form holds; the states in between are only reachable by control.
+    let beyond = StaticLoad {
+        loads: load_down(1.2 * limit),
+        steps: 10,
+        max_cuts: 3,
+        control: None,
+    };
+    let start = State::at_rest(structure.model.positions());
+    let (snapped, _) = beyond.run(&structure, start, &Settings::default(), &mut Path::default()).unwrap();
+    let z = snapped.positions[2].z;
+    assert!(z < -h, "snapped through to the inverted branch: z = {z}");
+    // As above: the residual tolerance relative to the bars' force.
+    assert!((p_of(z) - 1.2 * limit).abs() <= 1e-9 * ea, "P(z) = {} vs {}", p_of(z), 1.2 * limit);
+}
