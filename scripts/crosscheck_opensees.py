@@ -621,6 +621,11 @@ def crosscheck(ops, tsim, config, tmp):
                 scale = np.abs(rt).max()
                 err = float(np.abs(np.where(sup[None], rt - ro, 0.0)).max() / scale)
                 row(f"static reactions `{rkey}`, all steps", err, TOL_REACTION, "relative to the largest reaction")
+        eq = st.get("equilibrium")
+        if eq is not None and "position" in eq:
+            row("the given model's equilibrium (`/equilibrium`) vs OpenSees' unloaded step",
+                rel_position_error(eq["position"], states[0][0], case["size"]), TOL_EQUILIBRIUM,
+                "max node distance / model size")
     elif cfg.get("static") or case["gravity"].any():
         res["skipped"].append("static: tsim's result.h5 has no `static` states (stage not implemented yet?)")
     else:

@@ -56,7 +56,7 @@ EXPECTED = {
 
 
 def tolerance(quantity):
-    if quantity.startswith("static equilibrium"):
+    if quantity.startswith(("static equilibrium", "the given model's equilibrium")):
         return TOL_EQUILIBRIUM
     if quantity.startswith("eigenvalues"):
         return TOL_EIGEN
