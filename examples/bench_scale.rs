@@ -12,13 +12,13 @@
 use nalgebra::Vector3;
 use std::sync::Arc;
 use tsim::config::library;
-use tsim::dynamics::{DampingTangent, LoadProfile, NewmarkParams, NodalLoad, Rayleigh};
+use tsim::dynamics::{DampingTangent, LoadProfile, Loads, NewmarkParams, NodalLoad, Rayleigh};
 use tsim::law::ForceLaw;
 use tsim::model::generate::TowerSpec;
 use tsim::model::MemberKind;
 use tsim::record::{NoRecorder, Stage};
 use tsim::solve::{LinearSolverChoice, NewtonSettings};
-use tsim::stage::transient::Transient;
+use tsim::stage::transient::{Initial, Transient};
 use tsim::stage::{Analysis, Settings};
 use tsim::structure::{State, Structure};
 use tsim::tsm::{DofMap, Elements};
@@ -77,12 +77,12 @@ fn main() {
     };
     let model = &structure.model;
     let dof = DofMap::new(model, &[]).len();
-    let load = NodalLoad {
-        nodes: model.node_groups["top"].clone(),
-        force: Vector3::new(0.0, 0.0, 95.0),
-        duration: 0.05,
-        profile: LoadProfile::Step,
-    };
+    let load = NodalLoad::launch(
+        model.node_groups["top"].clone(),
+        Vector3::new(0.0, 0.0, 95.0),
+        0.05,
+        LoadProfile::Step,
+    );
     let transient = Transient {
         stage: Stage::Deployment,
         params: NewmarkParams {
@@ -92,7 +92,11 @@ fn main() {
         duration: steps as f64 * 0.001,
         damped: true,
         tangent: DampingTangent::LastConverged,
-        load: Some(load),
+        loads: Loads {
+            nodal: vec![load],
+            ground: None,
+        },
+        initial: Initial::default(),
     };
     let settings = Settings {
         newton: NewtonSettings {

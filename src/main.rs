@@ -5,15 +5,15 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use tsim::config::ConfigError;
-use tsim::run::{default_jobs, install_interrupt, interrupted, load, run, RunOptions, EXIT_INTERRUPTED};
+use tsim::config::{bytes_text, ConfigError};
+use tsim::run::{default_jobs, install_interrupt, interrupted, load, run, Expanded, RunOptions, EXIT_INTERRUPTED};
 
 #[derive(Parser)]
 #[command(
     name = "tsim",
     version,
     about = "Tensegrity simulation by the tangent stiffness method: form-finding, real materials, vibration, folding, deployment",
-    after_help = "Examples:\n  tsim check configs/sweep.yaml\n  tsim run configs/paper.yaml\n  tsim run configs/sweep.yaml --jobs 2 --out runs\n  tsim run configs/sweep.yaml --force   # rerun complete cases too"
+    after_help = "Examples:\n  tsim check configs/sweep.yaml\n  tsim run configs/paper.yaml\n  tsim run configs/sweep.yaml --jobs 2 --out runs\n  tsim run configs/sweep.yaml --force   # rerun complete cases too\n  tsim run big.yaml --allow-large       # past the output, memory and step limits"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -38,9 +38,19 @@ enum Command {
         /// No progress bars; one line per finished case.
         #[arg(long)]
         quiet: bool,
+        /// Lift the limits on estimated output (per run), peak memory (per case) and steps
+        /// (per stage); the config's `limits` section raises them one by one.
+        #[arg(long)]
+        allow_large: bool,
     },
-    /// Validate a config and list the cases it would run.
-    Check { config: PathBuf },
+    /// Validate a config and list the cases it would run, with their estimated output
+    /// and peak memory.
+    Check {
+        config: PathBuf,
+        /// Lift the limits on estimated output, peak memory and steps, as `run` would.
+        #[arg(long)]
+        allow_large: bool,
+    },
 }
 
 /// One `error: ` line per bad value (a syntax error's message runs on with its snippet).
@@ -54,12 +64,34 @@ fn report(e: &ConfigError) {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Check { config } => match load(&config) {
-            Ok((name, cases)) => {
+        Command::Check { config, allow_large } => match load(&config, allow_large) {
+            Ok(Expanded { name, cases, limits }) => {
                 println!("{}: {} case(s) into {name}/", config.display(), cases.len());
+                let width = cases.iter().map(|c| c.id.len()).max().unwrap_or(0);
                 for c in &cases {
-                    println!("  {}", c.id);
+                    println!(
+                        "  {:width$}  output {}, peak memory {}",
+                        c.id,
+                        bytes_text(c.estimate.output),
+                        bytes_text(c.estimate.memory)
+                    );
                 }
+                let output: f64 = cases.iter().map(|c| c.estimate.output).sum();
+                let memory = cases.iter().map(|c| c.estimate.memory).fold(0.0, f64::max);
+                let limit = |b: f64| {
+                    if b.is_finite() {
+                        bytes_text(b)
+                    } else {
+                        "none: --allow-large".into()
+                    }
+                };
+                println!(
+                    "estimated: output {} in all, uncompressed (limit {}); peak memory {} per case (limit {}; cases running at once add up)",
+                    bytes_text(output),
+                    limit(limits.max_output),
+                    bytes_text(memory),
+                    limit(limits.max_memory)
+                );
                 ExitCode::SUCCESS
             }
             Err(e) => {
@@ -73,8 +105,9 @@ fn main() -> ExitCode {
             jobs,
             force,
             quiet,
+            allow_large,
         } => {
-            let (name, cases) = match load(&config) {
+            let Expanded { name, cases, .. } = match load(&config, allow_large) {
                 Ok(x) => x,
                 Err(e) => {
                     report(&e);

@@ -2,7 +2,7 @@
 //! (→ Rayleigh α, β) → free vibration → folding → deployment. Every stage takes the
 //! structure and a converged state and returns the state it ends in; nothing reaches back.
 
-use crate::config::CaseConfig;
+use crate::config::{CaseConfig, StartFrom, TransientSpec};
 use crate::error::{Error, Result};
 use crate::model::{shape_error, Model};
 use crate::record::{FormFindRecord, ModelRecord, Recorder, Stage};
@@ -74,24 +74,38 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
         structure.damping = eig.rayleigh();
         summary.eigen = Some(eig);
     }
-    // 4. Free vibration about the equilibrium.
+    // 4. Free vibration about the equilibrium (or as `initial.from` says).
+    let mut previous = equilibrium.clone();
     if let Some(spec) = &cfg.free_vibration {
         let stage = cfg.transient(spec, Stage::FreeVibration, &model)?;
-        summary.free_vibration = Some(stage.run(&structure, equilibrium.clone(), &settings, recorder)?.1);
+        let start = start_state(spec, StartFrom::Equilibrium, [&equilibrium, &equilibrium, &previous]);
+        let (end, transient) = stage.run(&structure, start, &settings, recorder)?;
+        (previous, summary.free_vibration) = (end, Some(transient));
     }
     // 5. Folding from the equilibrium.
     let mut folded = equilibrium.clone();
     if let Some(folding) = cfg.folding(&model)? {
         let (state, fold) = folding.run(&structure, equilibrium.clone(), &settings, recorder)?;
-        (folded, summary.folding) = (state, Some(fold));
+        (folded, previous, summary.folding) = (state.clone(), state, Some(fold));
     }
-    // 6. Deployment from the folded state.
+    // 6. Deployment from the folded state (or as `initial.from` says).
     if let Some(spec) = &cfg.deployment {
         let stage = cfg.transient(spec, Stage::Deployment, &model)?;
-        let (deployed, transient) = stage.run(&structure, folded, &settings, recorder)?;
+        let start = start_state(spec, StartFrom::Folded, [&equilibrium, &folded, &previous]);
+        let (deployed, transient) = stage.run(&structure, start, &settings, recorder)?;
         summary.deployment = Some(DeploymentSummary::new(transient, deployed, &equilibrium));
     }
     Ok(summary)
+}
+
+/// The state a transient starts from: its `initial.from`, else `default`; the candidates
+/// are [equilibrium, folded, previous] (the end of the stage run just before).
+fn start_state(spec: &TransientSpec, default: StartFrom, [equilibrium, folded, previous]: [&State; 3]) -> State {
+    match spec.initial.as_ref().and_then(|i| i.from).unwrap_or(default) {
+        StartFrom::Equilibrium => equilibrium.clone(),
+        StartFrom::Folded => folded.clone(),
+        StartFrom::Previous => previous.clone(),
+    }
 }
 
 /// What form-finding (or the given model's equilibrium) leaves for the records besides

@@ -8,7 +8,7 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
-use tsim::config::parse_case;
+use tsim::config::{parse_case, GroundMotionSpec, NodalForceSpec, TimeFunctionSpec};
 use tsim::pipeline::run_case;
 use tsim::record::{Frame, RecordResult, Recorder, Stage};
 use tsim::solve::LinearSolverChoice;
@@ -69,14 +69,38 @@ impl Recorder for StepAllocations {
     }
 }
 
-/// Allocations of each deployment step of the paper case (0.3 s at Δt = 1 ms) with `solver`.
-fn step_allocations(solver: LinearSolverChoice) -> Vec<u64> {
+/// Allocations of each deployment step of the paper case (0.3 s at Δt = 1 ms) with
+/// `solver`; with `loaded`, also a harmonic nodal load, a table load and a ground
+/// acceleration table (issue 14's time functions).
+fn step_allocations(solver: LinearSolverChoice, loaded: bool) -> Vec<u64> {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/paper.yaml");
     let mut cfg = parse_case(&std::fs::read_to_string(path).unwrap(), path).unwrap();
     cfg.free_vibration = None;
     let deployment = cfg.deployment.as_mut().unwrap();
     // 300 steps of 1 ms: the launch (0.05 s) covers the first 50, whatever paper.yaml's Δt.
     (deployment.duration, deployment.dt) = (0.3, 0.001);
+    if loaded {
+        let table = TimeFunctionSpec::Table {
+            file: None,
+            points: vec![[0.0, 0.0], [0.1, 1.0], [0.2, -1.0], [0.25, 0.0]],
+        };
+        let force = |force, time| NodalForceSpec {
+            nodes: vec![],
+            groups: vec!["top".into()],
+            force,
+            time,
+        };
+        let harmonic = TimeFunctionSpec::Harmonic {
+            frequency: 5.0,
+            phase: 0.0,
+            duration: None,
+        };
+        deployment.loads = vec![force([10.0, 0.0, 0.0], harmonic), force([0.0, 5.0, 0.0], table.clone())];
+        deployment.ground_motion = Some(GroundMotionSpec {
+            acceleration: [0.5, 0.0, 0.2],
+            time: table,
+        });
+    }
     cfg.newton.linear_solver = solver;
     let mut rec = StepAllocations {
         stage: None,
@@ -89,11 +113,17 @@ fn step_allocations(solver: LinearSolverChoice) -> Vec<u64> {
 
 /// After the first step (which fills the sparse solver's cached element slots and may
 /// take the solver's first factorization), no step allocates. The launch load acts during
-/// the first 50 steps and then stops, so both regimes are covered.
+/// the first 50 steps and then stops, so both regimes are covered; a run with time
+/// functions and ground motion (dense solver: the load evaluation is solver-independent)
+/// allocates nothing either.
 #[test]
 fn newmark_steps_do_not_allocate() {
-    for solver in [LinearSolverChoice::Dense, LinearSolverChoice::Sparse] {
-        let per_step = step_allocations(solver);
+    for (solver, loaded) in [
+        (LinearSolverChoice::Dense, false),
+        (LinearSolverChoice::Sparse, false),
+        (LinearSolverChoice::Dense, true),
+    ] {
+        let per_step = step_allocations(solver, loaded);
         let allocating: Vec<(usize, u64)> = per_step
             .iter()
             .enumerate()
@@ -101,7 +131,13 @@ fn newmark_steps_do_not_allocate() {
             .filter(|&(_, &n)| n > 0)
             .map(|(i, &n)| (i + 1, n))
             .collect();
-        eprintln!("{solver:?}: first step {} allocations, later steps {allocating:?}", per_step[0]);
-        assert!(allocating.is_empty(), "{solver:?}: (step, allocations) {allocating:?}");
+        eprintln!(
+            "{solver:?} (loaded: {loaded}): first step {} allocations, later steps {allocating:?}",
+            per_step[0]
+        );
+        assert!(
+            allocating.is_empty(),
+            "{solver:?} (loaded: {loaded}): (step, allocations) {allocating:?}"
+        );
     }
 }

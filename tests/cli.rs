@@ -33,7 +33,13 @@ fn sweep_runs_in_stable_order_and_resumes() {
     let check = tsim(&["check", SWEEP]);
     assert!(check.status.success());
     let listed = String::from_utf8_lossy(&check.stdout);
-    let ids: Vec<&str> = listed.lines().skip(1).map(str::trim).collect();
+    // One indented line per case: its id, then its estimated output and memory.
+    let ids: Vec<&str> = listed
+        .lines()
+        .filter(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next())
+        .collect();
+    assert!(listed.lines().nth(1).unwrap().contains("output ") && listed.contains("estimated: output "));
     // First axis slowest: the contract that names output directories.
     assert_eq!(
         ids,
@@ -514,4 +520,86 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
             "{o:?}"
         );
     }
+}
+
+/// Work past a limit is refused by `check` and `run` with the estimate, the limit, the
+/// largest part at its line and the override; `--allow-large` or a `limits` section lets
+/// it pass `check`. The three limits: output of the run (a deployment of 5·10⁷ steps,
+/// about 90 GB), peak memory of a case (the eigen stage of a 2000-stage prism tower, 36 000
+/// free DOF), steps of a stage (10⁹ folding steps).
+#[test]
+fn work_over_a_limit_is_refused_naming_the_override() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let base = good.split("sweep:").next().unwrap().to_string();
+    let cases = [
+        (
+            base.replace("  duration: 0.1\n", "  duration: 50000.0\n"),
+            "duration: 50000.0",
+            "`deployment.duration`: estimated output ",
+            "limits: { max_output_gb: 1000 }",
+        ),
+        (
+            base.replace("stages: 1,", "stages: 2000,"),
+            "eigen:",
+            "`eigen`: estimated peak memory ",
+            "limits: { max_memory_gb: 100 }",
+        ),
+        (
+            base.replace("steps: 4", "steps: 1000000000"),
+            "steps: 1000000000",
+            "`folding.steps`: is 1.000e9 steps",
+            "limits: { max_steps: 1000000000, max_output_gb: 10000 }",
+        ),
+    ];
+    for (text, needle, message, raised) in cases {
+        let (out, path) = bad_config(&text);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&format!("{}: {message}", at(&path, &text, needle)))
+                && err.contains("--allow-large")
+                && err.contains("raise `limits."),
+            "{err}"
+        );
+        let path = path.to_str().unwrap();
+        let check = tsim(&["check", path]);
+        assert_eq!(check.status.code(), Some(2));
+        assert_eq!(String::from_utf8_lossy(&check.stderr), err);
+        let allowed = tsim(&["check", path, "--allow-large"]);
+        assert!(allowed.status.success(), "{}", String::from_utf8_lossy(&allowed.stderr));
+        let listed = String::from_utf8_lossy(&allowed.stdout);
+        assert!(listed.contains("limit none: --allow-large"), "{listed}");
+        std::fs::write(path, format!("{text}{raised}\n")).unwrap();
+        let raised = tsim(&["check", path]);
+        assert!(raised.status.success(), "{}", String::from_utf8_lossy(&raised.stderr));
+    }
+}
+
+/// The `limits` section belongs to the run: every case's resolved config (`case.yaml`,
+/// which a resume compares) is the same with it or without it, and a bad limit is an
+/// error at its line.
+#[test]
+fn limits_stay_out_of_case_yaml() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let with = good.replace("masses: paper", "masses: paper\nlimits: { max_memory_gb: 1, max_steps: 1000 }");
+    let yaml = |text: &str| -> Vec<String> {
+        tsim::run::expand(text, "small.yaml", false)
+            .unwrap()
+            .cases
+            .into_iter()
+            .map(|c| c.yaml)
+            .collect()
+    };
+    assert_eq!(yaml(&good), yaml(&with));
+    assert!(!yaml(&with)[0].contains("limits"));
+    let bad = good.replace("masses: paper", "masses: paper\nlimits: { max_output_gb: -1 }");
+    let (out, path) = bad_config(&bad);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&format!("{}: `limits.max_output_gb`", at(&path, &bad, "max_output_gb"))),
+        "{err}"
+    );
+    // A limit lowered below the case's steps (100 deployment steps) refuses it.
+    let low = good.replace("masses: paper", "masses: paper\nlimits: { max_steps: 50 }");
+    let (out, _) = bad_config(&low);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("at most 5e1 are allowed"));
 }

@@ -146,7 +146,7 @@ fn mutated_configs_never_panic_and_every_rejection_has_a_line() {
         for _ in 0..1 + rng.below(3) {
             text = mutate(&text, &mut rng);
         }
-        let result = catch_unwind(AssertUnwindSafe(|| expand(&text, origin)));
+        let result = catch_unwind(AssertUnwindSafe(|| expand(&text, origin, false)));
         match result {
             Err(_) => panic!("mutant {k} of {origin} panicked:\n{text}"),
             Ok(Ok(_)) => {

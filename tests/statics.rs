@@ -185,3 +185,68 @@ fn displacement_control_passes_the_limit_point_of_the_von_mises_truss() {
     // As above: the residual tolerance relative to the bars' force.
     assert!((p_of(z) - 1.2 * limit).abs() <= 1e-9 * ea, "P(z) = {} vs {}", p_of(z), 1.2 * limit);
 }
+
+/// A pendulum: a point mass M on an elastic bar hanging from a support, under gravity.
+/// The bar carries N = M g, so l = L0 (1 + M g/EA), and the lateral stiffness is pure
+/// geometric stiffness N/l: ω² = g/l whatever the suspension point does. Folding moves
+/// the support sideways by 1 m; the mass follows quasi-statically under gravity (the
+/// dead load stays on in folding) and the lowest eigenvalue at every step is g/l.
+#[test]
+fn folding_under_gravity_tracks_the_pendulum_frequency() {
+    use tsim::stage::fold::{Folding, Prescription, Target};
+    let (l0, ea, mass, g) = (2.0, 1.0e5, 40.0, 9.81);
+    let model = Model {
+        // Pre-stretched by 1 %: a slack bar has no lateral stiffness to start from.
+        nodes: vec![
+            node("top", [0.0, 0.0, 0.0], [true; 3]),
+            node("end", [0.0, 0.0, -1.01 * l0], [false, true, false]),
+        ],
+        members: vec![bar("bar", [0, 1])],
+        node_groups: Default::default(),
+    };
+    let mut structure = Structure::with_lumped_masses(model.clone(), elastic(ea, 1, vec![l0]), &[0.0], &[0.0, mass]);
+    structure.gravity = Vector3::new(0.0, 0.0, -g);
+    let gravity = StaticLoad {
+        loads: vec![],
+        steps: 1,
+        max_cuts: 0,
+        control: None,
+    };
+    let settings = Settings::default();
+    let (hanging, _) = gravity
+        .run(&structure, State::at_rest(model.positions()), &settings, &mut Path::default())
+        .unwrap();
+    let folding = Folding {
+        steps: 4,
+        max_cuts: 0,
+        prescribe: vec![Prescription {
+            nodes: vec![0],
+            axis: 0,
+            target: Target::Displacement(1.0),
+        }],
+        modes: 2,
+    };
+    let mut path = Path::default();
+    let (end, summary) = folding.run(&structure, hanging, &settings, &mut path).unwrap();
+    let l = l0 * (1.0 + mass * g / ea);
+    // Equilibrium to the Newton tolerance (1e-10 of the force, ~1e-9 m of position
+    // through EA/l ~ 5e4 N/m and N ~ 400 N); 1e-9 m bounds it.
+    assert!(
+        (end.positions[1] - Vector3::new(1.0, 0.0, -l)).norm() <= 1e-9,
+        "{:?}",
+        end.positions[1]
+    );
+    assert_eq!(summary.modes.len(), 4);
+    for m in &summary.modes {
+        // ω² = g/l from the geometric stiffness; the dense eigensolver resolves it to
+        // ε times the axial ω² (EA/(l0 M) ~ 1250 rad²/s², ~300 g/l): 1e-9 is far above.
+        assert!(
+            (m.omega2[0] - g / l).abs() <= 1e-9 * g / l,
+            "step {}: ω² = {} vs g/l = {}",
+            m.step,
+            m.omega2[0],
+            g / l
+        );
+        assert_eq!(m.lowest_at, "node `end` direction x");
+    }
+}

@@ -6,10 +6,15 @@
 
 /// 1-based line of `path`, or of its deepest prefix present; `None` if not even the first key is.
 pub fn line_of(text: &str, path: &str) -> Option<usize> {
-    let keys: Vec<&str> = path
+    // Each key with the index that follows it (`loads[1]`: the second item).
+    let keys: Vec<(&str, Option<usize>)> = path
         .split('.')
-        .map(|k| k.split('[').next().unwrap_or(k))
-        .filter(|k| !k.is_empty())
+        .map(|k| {
+            let mut parts = k.split('[');
+            let key = parts.next().unwrap_or(k);
+            (key, parts.next().and_then(|i| i.trim_end_matches(']').parse().ok()))
+        })
+        .filter(|(k, _)| !k.is_empty())
         .collect();
     let lines: Vec<&str> = text.lines().collect();
     let indent = |l: &str| l.len() - l.trim_start().len();
@@ -17,7 +22,7 @@ pub fn line_of(text: &str, path: &str) -> Option<usize> {
     // (line index, column after the key) of the last key found; the scope of the next key
     // is the rest of that line plus the following lines indented deeper than it.
     let mut found: Option<(usize, usize, usize)> = None; // (line, column, indent of the key's line)
-    for key in keys {
+    for (key, index) in keys {
         let pattern = format!("{key}:");
         let hit = match found {
             None => lines
@@ -37,11 +42,37 @@ pub fn line_of(text: &str, path: &str) -> Option<usize> {
             }
         };
         match hit {
-            Some(h) => found = Some(h),
+            Some(h) => found = Some(index.and_then(|k| item(&lines, h, k)).unwrap_or(h)),
             None => break,
         }
     }
     found.map(|(line, _, _)| line + 1)
+}
+
+/// The `k`-th item (0-based) of a block sequence that is the value of the key found at
+/// `(line, column, indent)`: its `- ` line, the column after the dash and the dash's
+/// indent. `None` for a flow sequence or fewer items (the key's line is used then).
+fn item(lines: &[&str], (line, col, ind): (usize, usize, usize), k: usize) -> Option<(usize, usize, usize)> {
+    let rest = lines[line][col..].trim();
+    if !(rest.is_empty() || rest.starts_with('#')) {
+        return None;
+    }
+    let indent = |l: &str| l.len() - l.trim_start().len();
+    let content = |l: &&str| !l.trim().is_empty() && !l.trim_start().starts_with('#');
+    let (first, _) = lines.iter().enumerate().skip(line + 1).find(|(_, l)| content(l))?;
+    let dash = indent(lines[first]);
+    if dash < ind || !lines[first].trim_start().starts_with('-') {
+        return None;
+    }
+    lines
+        .iter()
+        .enumerate()
+        .skip(first)
+        .filter(|(_, l)| content(l))
+        .take_while(|(_, l)| indent(l) > dash || (indent(l) == dash && l.trim_start().starts_with('-')))
+        .filter(|(_, l)| indent(l) == dash)
+        .nth(k)
+        .map(|(i, _)| (i, dash + 1, dash))
 }
 
 /// Column just after `key:` in `s`, where the key starts a mapping entry (line start,
@@ -75,6 +106,13 @@ mod tests {
         // A key that is absent (a default): the line of its section.
         assert_eq!(line_of(TEXT, "deployment.newmark_beta"), Some(5));
         assert_eq!(line_of(TEXT, "folding.steps"), None);
+        // Items of a block sequence by index, nested keys inside them.
+        let loads = "deployment:\n  loads:\n    - nodes: [a]\n      time: { step: { duration: 1 } }\n    - groups: [top]\n      # a comment\n      time:\n        ramp: { duration: -1 }\n  dt: 1\n";
+        assert_eq!(line_of(loads, "deployment.loads[1].time.ramp.duration"), Some(8));
+        assert_eq!(line_of(loads, "deployment.loads[0].time"), Some(4));
+        assert_eq!(line_of(loads, "deployment.loads[1]"), Some(5));
+        // Past the last item: the sequence's key.
+        assert_eq!(line_of(loads, "deployment.loads[2]"), Some(2));
         // `dt` inside another section is not taken for `deployment.dt`.
         assert_eq!(
             line_of("free_vibration:\n  dt: 1\ndeployment:\n  dt: 2\n", "deployment.dt"),

@@ -5,15 +5,19 @@
 
 mod build;
 mod loading;
+mod limits;
 mod locate;
 mod materials;
 mod plan;
 mod schema;
+mod tables;
 mod validate;
 
 pub use loading::*;
+pub use limits::{bytes_text, Estimate, LimitSpec, Limits, Part, MAX_MEMORY_GB, MAX_OUTPUT_GB, MAX_STEPS};
 pub use materials::{library, LawSpec, MaterialSpec};
 pub use schema::*;
+pub use tables::{parse_table, TableError};
 pub use validate::{ConfigError, FieldError, ValueError};
 
 /// Line of a dotted field path in the YAML text (see `locate`).
@@ -69,12 +73,36 @@ fn non_finite_literal(text: &str) -> Option<(usize, &str)> {
     })
 }
 
-/// Parses and validates one case configuration, reporting every bad value.
+/// Parses and validates one case configuration, reporting every bad value; its time
+/// tables are read relative to the directory of `origin`.
 pub fn parse_case(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
-    let cfg = parse(text, origin)?;
+    let mut cfg = parse(text, origin)?;
+    resolve_tables(&mut cfg, text, origin)?;
     cfg.validate()
         .map_err(|errors| ConfigError::Values(locate_errors(origin, text, errors)))?;
     Ok(cfg)
+}
+
+/// The directory a config file's relative paths start from: that of `origin`.
+pub fn config_dir(origin: &str) -> &std::path::Path {
+    std::path::Path::new(origin).parent().unwrap_or(std::path::Path::new(""))
+}
+
+/// Reads the CSV time tables of `cfg` (parsed from `text`, the file `origin`) into their
+/// points; a missing file is reported at its field's line, a bad row at its CSV line.
+pub fn resolve_tables(cfg: &mut CaseConfig, text: &str, origin: &str) -> Result<(), ConfigError> {
+    cfg.resolve_tables(config_dir(origin)).map_err(|errors| {
+        let (mut fields, mut rows) = (Vec::new(), Vec::new());
+        for e in errors {
+            match e {
+                TableError::Field(f) => fields.push(f),
+                TableError::Csv(v) => rows.push(v),
+            }
+        }
+        let mut located = locate_errors(origin, text, fields);
+        located.extend(rows);
+        ConfigError::Values(located)
+    })
 }
 
 /// `errors` of the file `origin`, each at its field's line, in file order.

@@ -2,9 +2,9 @@
 //! the stages. Every lookup by name (materials, node groups) happens here, on a config
 //! that `validate` has accepted.
 
-use super::loading::StaticSpec;
+use super::loading::{InitialAcceleration, NodalVectorSpec, StaticSpec, TimeFunctionSpec};
 use super::schema::{CaseConfig, FoldTarget, LoadSpec, RayleighSpec, TransientSpec};
-use crate::dynamics::{NodalLoad, Rayleigh};
+use crate::dynamics::{GroundMotion, Loads, NodalLoad, Rayleigh, TimeFunction};
 use crate::error::{Error, Result};
 use crate::law::ForceLaw;
 use crate::model::{MemberKind, Model};
@@ -13,7 +13,7 @@ use crate::stage::eigen::{DampingFrom, Eigen};
 use crate::stage::fold::{Folding, Prescription, Target};
 use crate::stage::static_load::{Control, StaticLoad};
 use crate::stage::substitute::Materials;
-use crate::stage::transient::Transient;
+use crate::stage::transient::{Initial, Transient};
 use crate::stage::Settings;
 use nalgebra::Vector3;
 use std::sync::Arc;
@@ -139,15 +139,50 @@ impl CaseConfig {
         Some(Eigen { damping })
     }
 
-    /// The transient stage `spec` describes, named `stage`.
+    /// The transient stage `spec` describes, named `stage`: the paper's `load` first, then
+    /// `loads` in order, the ground motion and the initial conditions (where the stage
+    /// starts, `initial.from`, is the pipeline's choice).
     pub fn transient(&self, spec: &TransientSpec, stage: Stage, model: &Model) -> Result<Transient> {
+        let error = |reason: String| Error::Stage {
+            stage: stage.name(),
+            reason,
+        };
+        let mut nodal: Vec<NodalLoad> = spec.load.iter().map(|l| launch_load(model, l)).collect::<Result<_>>()?;
+        for l in &spec.loads {
+            nodal.push(NodalLoad {
+                nodes: model.node_set(&l.nodes, &l.groups)?,
+                force: Vector3::from(l.force),
+                time: time_function(&l.time).map_err(error)?,
+            });
+        }
+        let ground = match &spec.ground_motion {
+            Some(g) => Some(GroundMotion {
+                acceleration: Vector3::from(g.acceleration),
+                time: time_function(&g.time).map_err(error)?,
+            }),
+            None => None,
+        };
+        let initial = spec.initial.clone().unwrap_or_default();
+        let field = |entries: &[NodalVectorSpec]| -> Result<Vec<(usize, Vector3<f64>)>> {
+            let mut out = Vec::new();
+            for e in entries {
+                let nodes = model.node_set(&e.nodes, &e.groups)?;
+                out.extend(nodes.into_iter().map(|n| (n, Vector3::from(e.value))));
+            }
+            Ok(out)
+        };
         Ok(Transient {
             stage,
             params: spec.newmark(),
             duration: spec.duration,
             damped: spec.damped,
             tangent: spec.damping_tangent,
-            load: spec.load.as_ref().map(|l| nodal_load(model, l)).transpose()?,
+            loads: Loads { nodal, ground },
+            initial: Initial {
+                displacement: field(&initial.displacement)?,
+                velocity: field(&initial.velocity)?,
+                zero_acceleration: initial.acceleration == InitialAcceleration::Zero,
+            },
         })
     }
 
@@ -172,21 +207,44 @@ impl CaseConfig {
             steps: spec.steps,
             max_cuts: spec.max_cuts,
             prescribe,
+            modes: spec.eigen.unwrap_or(0),
         }))
     }
 }
 
-fn nodal_load(model: &Model, spec: &LoadSpec) -> Result<NodalLoad> {
+fn launch_load(model: &Model, spec: &LoadSpec) -> Result<NodalLoad> {
     let mut nodes = Vec::new();
     for g in &spec.groups {
         nodes.extend_from_slice(model.group(g)?);
     }
     nodes.sort_unstable();
     nodes.dedup();
-    Ok(NodalLoad {
-        nodes,
-        force: Vector3::from(spec.force),
-        duration: spec.duration,
-        profile: spec.profile,
+    Ok(NodalLoad::launch(nodes, Vector3::from(spec.force), spec.duration, spec.profile))
+}
+
+/// The run-time function of a time function spec; a table must have its points (a file
+/// is read into them when the config is loaded: `resolve_tables`).
+fn time_function(spec: &TimeFunctionSpec) -> std::result::Result<TimeFunction, String> {
+    Ok(match *spec {
+        TimeFunctionSpec::Constant => TimeFunction::Constant,
+        TimeFunctionSpec::Step { duration } => TimeFunction::Step { duration },
+        TimeFunctionSpec::Ramp { duration } => TimeFunction::Ramp { duration },
+        TimeFunctionSpec::HalfSine { duration } => TimeFunction::HalfSine { duration },
+        TimeFunctionSpec::Harmonic {
+            frequency,
+            phase,
+            duration,
+        } => TimeFunction::Harmonic {
+            frequency,
+            phase,
+            duration,
+        },
+        TimeFunctionSpec::Table { ref file, ref points } => {
+            if points.len() < 2 {
+                let source = file.as_ref().map_or(String::new(), |f| format!(" (file `{f}` not read)"));
+                return Err(format!("a time table needs at least 2 points{source}"));
+            }
+            TimeFunction::Table(points.clone())
+        }
     })
 }

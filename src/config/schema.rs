@@ -1,4 +1,5 @@
 use super::loading::{AssignSpec, GroundMotionSpec, InitialSpec, NodalForceSpec, PointMassSpec, StaticSpec};
+use super::limits::LimitSpec;
 use super::materials::MaterialSpec;
 use crate::dynamics::{DampingTangent, LoadProfile, NewmarkParams};
 use crate::model::generate::TowerSpec;
@@ -51,6 +52,10 @@ pub struct CaseConfig {
     /// Sweep axes (see `config::sweep`); only in a top-level file.
     #[serde(default)]
     pub sweep: Option<SweepSpec>,
+    /// Work limits raised or lowered (see `config::limits`); only in a top-level file,
+    /// never written when unset.
+    #[serde(default, skip_serializing_if = "LimitSpec::is_unset")]
+    pub limits: LimitSpec,
 }
 
 /// Either a generated tower or explicit nodes and members.

@@ -1,3 +1,5 @@
+use super::loading::{NodalVectorSpec, StartFrom, TimeFunctionSpec};
+use super::limits::{bytes_text, Estimate, LimitSpec, Limits};
 use super::schema::*;
 use super::{LawSpec, MaterialSpec};
 use crate::model::generate::TowerSpec;
@@ -36,9 +38,9 @@ pub struct FieldError {
     pub message: String,
 }
 
-/// Collects problems so that one run of the checks reports all of them.
-#[derive(Default)]
-struct Problems(Vec<FieldError>);
+/// Collects problems so that one run of the checks reports all of them, under the limits
+/// in force.
+struct Problems(Vec<FieldError>, Limits);
 
 impl Problems {
     fn add(&mut self, field: impl Into<String>, message: impl Into<String>) {
@@ -66,10 +68,19 @@ impl Problems {
 }
 
 impl CaseConfig {
-    /// Range and cross-section checks that the types cannot express, all of them: a model
-    /// that does not build skips only the checks that need it.
+    /// Range and cross-section checks that the types cannot express, all of them, under
+    /// this config's own `limits`: a model that does not build skips only the checks that
+    /// need it.
     pub fn validate(&self) -> Result<(), Vec<FieldError>> {
-        let mut p = Problems::default();
+        self.validate_with(&Limits::new(&self.limits, false)).map(|_| ())
+    }
+
+    /// [`CaseConfig::validate`] under `limits` (a sweep's, or lifted), with the case's
+    /// estimated output and peak memory when it is valid; a peak memory over the limit
+    /// is an error of the field that drives it.
+    pub fn validate_with(&self, limits: &Limits) -> Result<Estimate, Vec<FieldError>> {
+        let mut p = Problems(Vec::new(), *limits);
+        check_limits(&self.limits, &mut p);
         let model = self.check_model(&mut p);
         self.check_materials(&mut p);
         self.check_shape(&mut p);
@@ -85,6 +96,7 @@ impl CaseConfig {
                     model.as_ref(),
                     &mut p,
                 );
+                check_transient_loading(name, t, self.model_has_supports(), model.as_ref(), &mut p);
             }
         }
         if let Some(f) = &self.folding {
@@ -99,11 +111,35 @@ impl CaseConfig {
         }
         check_name(&self.name, &mut p);
         check_newton(&self.newton, &mut p);
-        if p.0.is_empty() {
-            Ok(())
-        } else {
-            Err(p.0)
+        match model {
+            // Estimated only from valid values: a zero dt would make it meaningless.
+            Some(model) if p.0.is_empty() => {
+                let estimate = self.estimate(&model);
+                if estimate.memory > limits.max_memory {
+                    let part = &estimate.memory_part;
+                    p.add(
+                        part.field.clone(),
+                        format!(
+                            "estimated peak memory {} exceeds the limit of {} per case; the largest part: {}, {}; {}",
+                            bytes_text(estimate.memory),
+                            bytes_text(limits.max_memory),
+                            part.what,
+                            bytes_text(part.bytes),
+                            Limits::remedy("max_memory_gb")
+                        ),
+                    );
+                    return Err(p.0);
+                }
+                Ok(estimate)
+            }
+            _ => Err(p.0),
         }
+    }
+
+    /// Whether the model has a support (a tower's base is supported); known without
+    /// building the model, so that a model that does not build still gets the check.
+    fn model_has_supports(&self) -> bool {
+        self.model.tower.is_some() || self.model.nodes.iter().any(|n| !n.fix.is_empty())
     }
 
     /// Built-in materials with this config's additions.
@@ -410,12 +446,36 @@ fn check_newton(n: &NewtonSettings, p: &mut Problems) {
     p.positive("newton.max_step", n.max_step);
 }
 
-/// Most time steps of one stage and static steps of folding: bounds the work and the
-/// output a config can ask for (the paper's deployment has 16 000).
-const MAX_STEPS: usize = 100_000_000;
+/// The `limits` section's own values.
+fn check_limits(l: &LimitSpec, p: &mut Problems) {
+    for (field, v) in [("limits.max_output_gb", l.max_output_gb), ("limits.max_memory_gb", l.max_memory_gb)] {
+        if let Some(v) = v {
+            p.positive(field, v);
+        }
+    }
+    if l.max_steps == Some(0) {
+        p.add("limits.max_steps", "is 0; must be ≥ 1");
+    }
+}
 
-/// Most halvings of a failing step: 2^30 sub-steps is already far past any use, and the
-/// bisection recurses once per halving.
+/// The steps of one stage against `limits.max_steps` (time steps and folding steps bound
+/// the work and the output a config can ask for).
+fn check_steps(field: &str, steps: f64, what: &str, p: &mut Problems) {
+    let max = p.1.max_steps;
+    if steps > max as f64 {
+        let how = match p.1.lifted {
+            true => "the most tsim can count".to_string(),
+            false => Limits::remedy("max_steps"),
+        };
+        p.add(
+            field,
+            format!("{what} {steps:.3e} steps; at most {max:.0e} are allowed in one stage ({how})"),
+        );
+    }
+}
+
+/// Most halvings of a failing step: 2^30 sub-steps of one step is already far past any
+/// use (the bisection itself is iterative and would go deeper).
 const MAX_CUTS: u32 = 30;
 
 fn check_cuts(field: &str, cuts: u32, p: &mut Problems) {
@@ -430,16 +490,12 @@ fn check_cuts(field: &str, cuts: u32, p: &mut Problems) {
 fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option<&Model>, p: &mut Problems) {
     p.positive(&format!("{name}.dt"), t.dt);
     p.positive(&format!("{name}.duration"), t.duration);
-    let steps = t.duration / t.dt;
-    if steps > MAX_STEPS as f64 {
-        p.add(
-            format!("{name}.duration"),
-            format!(
-                "{:e} s at Δt = {:e} s is {steps:.3e} steps; at most {MAX_STEPS:.0e} are allowed in one stage",
-                t.duration, t.dt
-            ),
-        );
-    }
+    check_steps(
+        &format!("{name}.duration"),
+        t.duration / t.dt,
+        &format!("{:e} s at Δt = {:e} s is", t.duration, t.dt),
+        p,
+    );
     if t.dt > t.duration {
         p.add(
             format!("{name}.dt"),
@@ -466,9 +522,10 @@ fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option
 }
 
 fn check_static(s: &super::StaticSpec, gravity: bool, p: &mut Problems) {
-    if s.steps == 0 || s.steps > MAX_STEPS {
-        p.add("static.steps", format!("is {}; must lie in 1..={MAX_STEPS}", s.steps));
+    if s.steps == 0 {
+        p.add("static.steps", "is 0; must be ≥ 1");
     }
+    check_steps("static.steps", s.steps as f64, "is", p);
     check_cuts("static.max_cuts", s.max_cuts, p);
     if s.loads.is_empty() && !gravity {
         p.add("static", "nothing to apply: give `loads` or `gravity`");
@@ -487,11 +544,21 @@ fn check_static(s: &super::StaticSpec, gravity: bool, p: &mut Problems) {
 }
 
 fn check_folding(f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
-    if f.steps == 0 || f.steps > MAX_STEPS {
-        p.add("folding.steps", format!("is {}; must lie in 1..={MAX_STEPS}", f.steps));
+    if f.steps == 0 {
+        p.add("folding.steps", "is 0; must be ≥ 1");
     }
+    check_steps("folding.steps", f.steps as f64, "is", p);
     check_cuts("folding.max_cuts", f.max_cuts, p);
     let Some(model) = model else { return };
+    if let Some(k) = f.eigen {
+        let dof_count = 3 * model.node_count() - model.support_count();
+        if k == 0 || k > dof_count {
+            p.add(
+                "folding.eigen",
+                format!("is {k}; must lie in 1..={dof_count} (the model's free DOF)"),
+            );
+        }
+    }
     for (k, s) in f.prescribe.iter().enumerate() {
         if let Err(e) = model.group(&s.group) {
             p.add(format!("folding.prescribe[{k}].group"), e.to_string());
@@ -499,6 +566,136 @@ fn check_folding(f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
         if s.target == FoldTarget::ToBase {
             if let Err(e) = model.group("base") {
                 p.add(format!("folding.prescribe[{k}].to_base"), e.to_string());
+            }
+        }
+    }
+}
+
+/// The loads, ground motion and initial conditions of a transient: every node set names
+/// known nodes and at least one; time functions have positive durations and frequencies
+/// and tables increasing times; ground motion needs supports to move; an initial
+/// displacement or velocity may not move a supported direction.
+fn check_transient_loading(name: &str, t: &TransientSpec, supported: bool, model: Option<&Model>, p: &mut Problems) {
+    for (k, l) in t.loads.iter().enumerate() {
+        check_node_set(&format!("{name}.loads[{k}]"), &l.nodes, &l.groups, model, p);
+        check_time_function(&format!("{name}.loads[{k}].time"), &l.time, p);
+    }
+    if let Some(g) = &t.ground_motion {
+        check_time_function(&format!("{name}.ground_motion.time"), &g.time, p);
+        if !supported {
+            p.add(
+                format!("{name}.ground_motion"),
+                "the model has no support for the ground to move: fix some directions (`fix` of `model.nodes`), or give the forces as `loads`",
+            );
+        }
+    }
+    let Some(initial) = &t.initial else { return };
+    if name == "free_vibration" && initial.from == Some(StartFrom::Folded) {
+        p.add(
+            format!("{name}.initial.from"),
+            "folding runs after free vibration; use `equilibrium` or `previous`",
+        );
+    }
+    for (what, entries) in [("displacement", &initial.displacement), ("velocity", &initial.velocity)] {
+        for (k, e) in entries.iter().enumerate() {
+            let field = format!("{name}.initial.{what}[{k}]");
+            check_node_set(&field, &e.nodes, &e.groups, model, p);
+            if let Some(model) = model {
+                check_not_supported(&field, what, e, model, p);
+            }
+        }
+    }
+}
+
+/// A non-zero initial `what` on a supported direction, each node and direction named.
+fn check_not_supported(field: &str, what: &str, e: &NodalVectorSpec, model: &Model, p: &mut Problems) {
+    let Ok(nodes) = model.node_set(&e.nodes, &e.groups) else { return };
+    for n in nodes {
+        let node = &model.nodes[n];
+        for a in (0..3).filter(|&a| node.support[a] && e.value[a] != 0.0) {
+            p.add(
+                format!("{field}.value"),
+                format!(
+                    "node `{}` is supported in {}: an initial {what} there ({}) would move the support; set that component to 0 or leave the node out",
+                    node.id,
+                    ["x", "y", "z"][a],
+                    e.value[a]
+                ),
+            );
+        }
+    }
+}
+
+/// `nodes` and `groups` of the entry at `field` name known nodes, at least one.
+fn check_node_set(field: &str, nodes: &[String], groups: &[String], model: Option<&Model>, p: &mut Problems) {
+    if nodes.is_empty() && groups.is_empty() {
+        p.add(field, crate::model::ModelError::EmptyNodeSet.to_string());
+        return;
+    }
+    let Some(model) = model else { return };
+    let before = p.0.len();
+    for id in nodes.iter().filter(|id| !model.nodes.iter().any(|n| &n.id == *id)) {
+        p.add(
+            format!("{field}.nodes"),
+            crate::model::ModelError::UnknownNodeId { node: id.clone() }.to_string(),
+        );
+    }
+    for e in groups.iter().filter_map(|g| model.group(g).err()) {
+        p.add(format!("{field}.groups"), e.to_string());
+    }
+    if p.0.len() == before {
+        if let Err(e) = model.node_set(nodes, groups) {
+            p.add(field, e.to_string());
+        }
+    }
+}
+
+/// Durations and frequencies positive, a table's points at least two with times
+/// strictly increasing (a table read from a file was checked as it was read).
+fn check_time_function(field: &str, f: &TimeFunctionSpec, p: &mut Problems) {
+    match f {
+        TimeFunctionSpec::Constant => {}
+        TimeFunctionSpec::Step { duration } => p.positive(&format!("{field}.step.duration"), *duration),
+        TimeFunctionSpec::Ramp { duration } => p.positive(&format!("{field}.ramp.duration"), *duration),
+        TimeFunctionSpec::HalfSine { duration } => p.positive(&format!("{field}.half_sine.duration"), *duration),
+        TimeFunctionSpec::Harmonic {
+            frequency,
+            phase,
+            duration,
+        } => {
+            p.positive(&format!("{field}.harmonic.frequency"), *frequency);
+            if !phase.is_finite() {
+                p.add(format!("{field}.harmonic.phase"), format!("is {phase}; must be finite"));
+            }
+            if let Some(d) = duration {
+                p.positive(&format!("{field}.harmonic.duration"), *d);
+            }
+        }
+        TimeFunctionSpec::Table { file, points } => {
+            let field = format!("{field}.table");
+            match (file, points.len()) {
+                (Some(_), 0) => {}
+                (Some(_), _) => p.add(field.clone(), "give `file` or `points`, not both"),
+                (None, n) if n < 2 => p.add(
+                    format!("{field}.points"),
+                    format!("has {n} point(s); a table needs at least 2 `[time, value]` pairs"),
+                ),
+                (None, _) => {}
+            }
+            for (i, pt) in points.iter().enumerate() {
+                if !(pt[0].is_finite() && pt[1].is_finite()) {
+                    p.add(format!("{field}.points[{i}]"), format!("{pt:?} is not finite"));
+                } else if i > 0 && pt[0] <= points[i - 1][0] {
+                    p.add(
+                        format!("{field}.points[{i}]"),
+                        format!(
+                            "time {} is not after points[{}]'s {}; times must increase strictly: sort the points and remove duplicates",
+                            pt[0],
+                            i - 1,
+                            points[i - 1][0]
+                        ),
+                    );
+                }
             }
         }
     }

@@ -1,7 +1,11 @@
+//! The external force of a transient stage: nodal loads scaled by time functions, a
+//! uniform ground acceleration, and the structure's constant load (dead loads, weight).
+
 use crate::tsm::DofMap;
 use nalgebra::Vector3;
 
-/// Time profile of a load: the factor applied to its force at time t.
+/// Time profile of the paper's launch load (the config's `load.profile`): kept as the
+/// spelling of that key; at run time it is a [`TimeFunction`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum LoadProfile {
@@ -11,24 +15,107 @@ pub enum LoadProfile {
     HalfSine,
 }
 
-/// The same force on each of a set of nodes (the paper's launch load).
+/// A factor f(t) of stage time t [s] (the config's `TimeFunctionSpec`, with a table's
+/// file already read into its points).
+#[derive(Clone, Debug, PartialEq)]
+pub enum TimeFunction {
+    /// 1 at every t.
+    Constant,
+    /// 1 for 0 ≤ t < duration, then 0.
+    Step { duration: f64 },
+    /// t/duration up to `duration`, then 1.
+    Ramp { duration: f64 },
+    /// sin(π t/duration) for 0 ≤ t ≤ duration, then 0.
+    HalfSine { duration: f64 },
+    /// sin(2π f t + φ) for 0 ≤ t < duration (for every t ≥ 0 without one).
+    Harmonic { frequency: f64, phase: f64, duration: Option<f64> },
+    /// Piecewise linear through (t, f), times strictly increasing (at least two points);
+    /// the first value before the first time, the last after the last.
+    Table(Vec<[f64; 2]>),
+}
+
+impl TimeFunction {
+    pub fn at(&self, t: f64) -> f64 {
+        use std::f64::consts::PI;
+        match *self {
+            TimeFunction::Constant => 1.0,
+            TimeFunction::Step { duration } => f64::from(t >= 0.0 && t < duration),
+            TimeFunction::Ramp { duration } => (t / duration).clamp(0.0, 1.0),
+            TimeFunction::HalfSine { duration } if (0.0..=duration).contains(&t) => (PI * t / duration).sin(),
+            TimeFunction::HalfSine { .. } => 0.0,
+            TimeFunction::Harmonic {
+                frequency,
+                phase,
+                duration,
+            } => {
+                if t >= 0.0 && duration.is_none_or(|d| t < d) {
+                    (2.0 * PI * frequency * t + phase).sin()
+                } else {
+                    0.0
+                }
+            }
+            TimeFunction::Table(ref points) => table_at(points, t),
+        }
+    }
+
+    /// The time from which f is constant (∞ for a harmonic without end).
+    pub fn end(&self) -> f64 {
+        match *self {
+            TimeFunction::Constant => 0.0,
+            TimeFunction::Step { duration } | TimeFunction::Ramp { duration } | TimeFunction::HalfSine { duration } => duration,
+            TimeFunction::Harmonic { duration, .. } => duration.unwrap_or(f64::INFINITY),
+            TimeFunction::Table(ref points) => points.last().map_or(0.0, |p| p[0]),
+        }
+    }
+
+    /// The constant value f takes from [`end`](Self::end) on.
+    pub fn final_value(&self) -> f64 {
+        match self {
+            TimeFunction::Constant | TimeFunction::Ramp { .. } => 1.0,
+            TimeFunction::Table(points) => points.last().map_or(0.0, |p| p[1]),
+            _ => 0.0,
+        }
+    }
+}
+
+/// Linear interpolation in `points` (sorted by time), held constant outside.
+fn table_at(points: &[[f64; 2]], t: f64) -> f64 {
+    let (Some(first), Some(last)) = (points.first(), points.last()) else {
+        return 0.0;
+    };
+    if t <= first[0] {
+        return first[1];
+    }
+    if t >= last[0] {
+        return last[1];
+    }
+    // The first point later than t; 1 ≤ k < len here.
+    let k = points.partition_point(|p| p[0] <= t);
+    let ([t0, f0], [t1, f1]) = (points[k - 1], points[k]);
+    f0 + (f1 - f0) * (t - t0) / (t1 - t0)
+}
+
+/// The same force on each of a set of nodes, scaled by a time function.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NodalLoad {
     pub nodes: Vec<usize>,
     /// Force per node [N].
     pub force: Vector3<f64>,
-    /// Duration of the load [s].
-    pub duration: f64,
-    pub profile: LoadProfile,
+    pub time: TimeFunction,
 }
 
 impl NodalLoad {
+    /// The paper's launch load: `profile` over `duration` [s].
+    pub fn launch(nodes: Vec<usize>, force: Vector3<f64>, duration: f64, profile: LoadProfile) -> Self {
+        let time = match profile {
+            LoadProfile::Step => TimeFunction::Step { duration },
+            LoadProfile::HalfSine => TimeFunction::HalfSine { duration },
+        };
+        NodalLoad { nodes, force, time }
+    }
+
     pub fn factor(&self, t: f64) -> f64 {
-        match self.profile {
-            LoadProfile::Step => f64::from(t >= 0.0 && t < self.duration),
-            LoadProfile::HalfSine if (0.0..=self.duration).contains(&t) => (std::f64::consts::PI * t / self.duration).sin(),
-            LoadProfile::HalfSine => 0.0,
-        }
+        self.time.at(t)
     }
 
     /// Adds the load at time t to a force vector on the free DOFs of `dofs`.
@@ -44,5 +131,141 @@ impl NodalLoad {
                 }
             }
         }
+    }
+}
+
+/// Uniform acceleration of the ground, a_g(t) = `acceleration` · f(t) [m/s²], moving
+/// every support together.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroundMotion {
+    pub acceleration: Vector3<f64>,
+    pub time: TimeFunction,
+}
+
+/// The time-varying loads of a transient stage (the structure's constant load comes on
+/// top, see [`FreeLoads`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Loads {
+    pub nodal: Vec<NodalLoad>,
+    pub ground: Option<GroundMotion>,
+}
+
+impl Loads {
+    /// The time from which every load is constant (0 for none).
+    pub fn end(&self) -> f64 {
+        let ground = self.ground.iter().map(|g| g.time.end());
+        self.nodal.iter().map(|l| l.time.end()).chain(ground).fold(0.0, f64::max)
+    }
+
+    /// Whether some load is still on after [`end`](Self::end).
+    pub fn persist(&self) -> bool {
+        let nodal = self
+            .nodal
+            .iter()
+            .any(|l| l.time.final_value() != 0.0 && l.force != Vector3::zeros());
+        let ground = self
+            .ground
+            .as_ref()
+            .is_some_and(|g| g.time.final_value() != 0.0 && g.acceleration != Vector3::zeros());
+        nodal || ground
+    }
+}
+
+/// The external force of a transient on the free DOFs, set up once for a stage so that
+/// evaluating it at a time allocates nothing:
+///
+/// f(t) = f_c + Σ_k F_k f_k(t) − M a_g(t),
+///
+/// f_c the structure's constant load (dead loads and weight m g), F_k the nodal loads with
+/// their time functions, and −M a_g the inertia load of the ground acceleration on every
+/// free DOF. The last term is the relative formulation: positions, velocities and
+/// accelerations are those relative to the moving ground (supports stay where they are),
+/// so a rigid motion of the whole structure with the ground strains nothing, and kinetic
+/// energy, the energy ledger and Rayleigh damping (its αM term included) all act on the
+/// relative motion; absolute motion is the relative one plus the ground's.
+#[derive(Clone, Debug)]
+pub struct FreeLoads {
+    constant: Vec<f64>,
+    nodal: Vec<NodalLoad>,
+    /// −m on each free DOF times the ground acceleration's component there [N per m/s²
+    /// of f(t)], with its time function; `None` without ground motion.
+    ground: Option<(Vec<f64>, TimeFunction)>,
+    /// Whether `constant` has any non-zero entry (no need to read it otherwise).
+    has_constant: bool,
+}
+
+impl FreeLoads {
+    /// `constant[n]` per node [N], `masses` per free DOF [kg].
+    pub fn new(loads: &Loads, constant: &[Vector3<f64>], masses: &[f64], dofs: &DofMap) -> Self {
+        let on_free = |value: &dyn Fn(usize, usize) -> f64| -> Vec<f64> {
+            (0..dofs.len())
+                .map(|i| {
+                    let (n, a) = dofs.owner(i);
+                    value(n, a)
+                })
+                .collect()
+        };
+        let constant = on_free(&|n, a| constant.get(n).map_or(0.0, |f| f[a]));
+        let ground = loads.ground.as_ref().map(|g| {
+            let inertia: Vec<f64> = (0..dofs.len()).map(|i| -masses[i] * g.acceleration[dofs.owner(i).1]).collect();
+            (inertia, g.time.clone())
+        });
+        FreeLoads {
+            has_constant: constant.iter().any(|&c| c != 0.0),
+            constant,
+            nodal: loads.nodal.clone(),
+            ground,
+        }
+    }
+
+    /// Writes f(t) on the free DOFs of `dofs` into `f`; allocates nothing.
+    pub fn at(&self, t: f64, dofs: &DofMap, f: &mut [f64]) {
+        if self.has_constant {
+            f.copy_from_slice(&self.constant);
+        } else {
+            f.fill(0.0);
+        }
+        for load in &self.nodal {
+            load.add_free(t, dofs, f);
+        }
+        if let Some((inertia, time)) = &self.ground {
+            let s = time.at(t);
+            if s != 0.0 {
+                for (fi, mi) in f.iter_mut().zip(inertia) {
+                    *fi += s * mi;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each function at points inside, at the edges and past its end; the values are
+    /// exact in floating point except the sines (1e-15: sin near π is ~1e-16 off 0).
+    #[test]
+    fn time_functions() {
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-15;
+        let step = TimeFunction::Step { duration: 0.5 };
+        assert_eq!((step.at(0.0), step.at(0.49), step.at(0.5), step.at(-0.1)), (1.0, 1.0, 0.0, 0.0));
+        let ramp = TimeFunction::Ramp { duration: 2.0 };
+        assert_eq!((ramp.at(0.0), ramp.at(1.0), ramp.at(2.0), ramp.at(5.0)), (0.0, 0.5, 1.0, 1.0));
+        let pulse = TimeFunction::HalfSine { duration: 1.0 };
+        assert!(near(pulse.at(0.5), 1.0) && near(pulse.at(1.0), 0.0) && pulse.at(1.5) == 0.0);
+        let h = TimeFunction::Harmonic {
+            frequency: 2.0,
+            phase: std::f64::consts::FRAC_PI_2,
+            duration: Some(1.0),
+        };
+        assert!(near(h.at(0.0), 1.0) && near(h.at(0.25), -1.0) && h.at(1.0) == 0.0);
+        let table = TimeFunction::Table(vec![[0.0, 1.0], [1.0, 3.0], [3.0, -1.0]]);
+        assert_eq!(
+            (table.at(-1.0), table.at(0.5), table.at(1.0), table.at(2.0), table.at(9.0)),
+            (1.0, 2.0, 3.0, 1.0, -1.0)
+        );
+        assert_eq!((table.end(), table.final_value()), (3.0, -1.0));
+        assert_eq!((TimeFunction::Constant.end(), TimeFunction::Constant.final_value()), (0.0, 1.0));
     }
 }

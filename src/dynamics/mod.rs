@@ -5,6 +5,6 @@ mod load;
 mod newmark;
 mod rayleigh;
 
-pub use load::{LoadProfile, NodalLoad};
+pub use load::{FreeLoads, GroundMotion, LoadProfile, Loads, NodalLoad, TimeFunction};
 pub use newmark::{Damping, DampingTangent, Energy, Integrator, Newmark, NewmarkParams};
 pub use rayleigh::Rayleigh;

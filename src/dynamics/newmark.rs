@@ -175,6 +175,22 @@ impl<'a> Newmark<'a> {
         s
     }
 
+    /// Starts from a = 0 instead of the consistent acceleration (`initial.acceleration:
+    /// zero`). The equation of motion at t = 0 then holds for the force M·0 + C v0 + p(x0),
+    /// not for the load f0: the first step's trapezoidal work counts that force at t = 0,
+    /// as it counts every force the equations used, so the ledger keeps closing.
+    pub fn start_with_zero_acceleration(&mut self) {
+        self.a.fill(0.0);
+        for i in 0..self.mass.len() {
+            self.f[i] = self.fd[i] + self.asm.p_free(i);
+        }
+    }
+
+    /// External force on the free DOFs at the last converged time [N].
+    pub fn external_force(&self) -> &[f64] {
+        &self.f
+    }
+
     /// Member states the βK term uses now.
     fn damping_states(&self) -> &[MemberState] {
         match self.tangent {
@@ -205,7 +221,7 @@ impl<'a> Newmark<'a> {
         (e.kinetic + e.strain + e.damping - e.external - self.initial_energy).abs()
     }
 
-    /// Advances by `dt`, cutting the step in halves (recursively, `max_cuts` deep) where
+    /// Advances by `dt`, cutting the step in halves (up to `max_cuts` halvings deep) where
     /// Newton fails. `load(t, f)` writes the external force on the free DOFs at time t.
     pub fn advance(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<NewtonReport, SolveError> {
         let merge = |first: NewtonReport, second: NewtonReport| NewtonReport {

@@ -9,7 +9,7 @@ mod sweep;
 
 pub use interrupt::{install as install_interrupt, interrupted, EXIT_INTERRUPTED};
 pub use progress::Progress;
-pub use sweep::{expand, Case};
+pub use sweep::{expand, Case, Expanded};
 
 use crate::config::ConfigError;
 use crate::pipeline::{run_case, CaseSummary};
@@ -91,7 +91,8 @@ pub fn default_jobs() -> usize {
 }
 
 /// Reads, expands and validates a config file: everything that can fail before work.
-pub fn load(path: &Path) -> Result<(String, Vec<Case>), ConfigError> {
+/// `allow_large` lifts the limits on estimated output, memory and steps.
+pub fn load(path: &Path, allow_large: bool) -> Result<Expanded, ConfigError> {
     let origin = path.display().to_string();
     let io = |message: String| ConfigError::Io {
         file: origin.clone(),
@@ -103,7 +104,7 @@ pub fn load(path: &Path) -> Result<(String, Vec<Case>), ConfigError> {
         let line = 1 + e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count();
         io(format!("line {line}, byte {at}: not UTF-8 text; save the file as UTF-8"))
     })?;
-    expand(&text, &origin)
+    expand(&text, &origin, allow_large)
 }
 
 /// Runs every case of a sweep into `out/<name>/<case id>/`, then writes `summary.csv`

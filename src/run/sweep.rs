@@ -2,7 +2,7 @@
 //! case ids name output directories), each case a full config validated before any work.
 
 use super::CaseOutcome;
-use crate::config::{self, CaseConfig, ConfigError, SweepAxis, ValueError};
+use crate::config::{self, bytes_text, CaseConfig, ConfigError, Estimate, LimitSpec, Limits, Part, SweepAxis, TableError, ValueError};
 use serde_json::Value;
 use std::collections::HashSet;
 use std::path::Path;
@@ -17,6 +17,8 @@ pub struct Case {
     pub config: CaseConfig,
     /// The resolved config as YAML (`case.yaml`; resume compares it).
     pub yaml: String,
+    /// Its estimated output and peak memory.
+    pub estimate: Estimate,
 }
 
 fn set_path(v: &mut Value, path: &str, new: Value) -> Result<(), String> {
@@ -56,28 +58,49 @@ fn value_lines(text: &str, axis: &str, label: &str) -> Vec<usize> {
         .collect()
 }
 
+/// A config file expanded: the run's name (the directory under `--out`), its cases, and
+/// the limits they were checked against.
+#[derive(Clone, Debug)]
+pub struct Expanded {
+    pub name: String,
+    pub cases: Vec<Case>,
+    pub limits: Limits,
+}
+
 /// Most cases one sweep may expand to: each is a validated config held in memory before
 /// any runs (a sweep of 8 axes × 10 values asked for 79 GB).
 pub const MAX_CASES: usize = 100_000;
 
 /// Expands a config file's text into its cases; every case is validated, and every error
 /// of the file is reported (each distinct one once, with the first case it occurs in).
-pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigError> {
-    let base = config::parse(text, origin)?;
+/// `origin` is the file's path: time tables (CSV) are read relative to its directory.
+/// The file's `limits` hold for every case and for the run's total output;
+/// `allow_large` (`--allow-large`) lifts them.
+pub fn expand(text: &str, origin: &str, allow_large: bool) -> Result<Expanded, ConfigError> {
+    let mut base = config::parse(text, origin)?;
+    config::resolve_tables(&mut base, text, origin)?;
     let axes = base.sweep.clone().unwrap_or_default().axes;
+    let limits = Limits::new(&base.limits, allow_large);
     // The base must be valid on its own; cases built on a broken one would only repeat it.
-    let mut errors = config::locate_errors(origin, text, base.validate().err().unwrap_or_default());
+    let mut errors = config::locate_errors(origin, text, base.validate_with(&limits).err().unwrap_or_default());
     errors.extend(axis_errors(&axes, origin, text));
     if !errors.is_empty() {
         return Err(ConfigError::Values(errors));
     }
     let mut plain = base.clone();
     plain.sweep = None;
+    // The run's limits are not part of a case: case.yaml stays the same whatever they are.
+    plain.limits = LimitSpec::default();
     let base_value = serde_json::to_value(&plain).map_err(|e| ConfigError::Io {
         file: origin.into(),
         message: e.to_string(),
     })?;
-    let sweep = Sweep { text, origin, axes: &axes };
+    let sweep = Sweep {
+        text,
+        origin,
+        axes: &axes,
+        limits,
+    };
     let total = axes.iter().fold(1_usize, |n, a| n.saturating_mul(a.values.len()));
     if total > MAX_CASES {
         return Err(ConfigError::Values(vec![ValueError {
@@ -89,6 +112,8 @@ pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigErr
     }
     let mut cases = Vec::with_capacity(total);
     let mut seen = HashSet::new();
+    // The largest output part of any case: (case index, its chosen values, the part).
+    let mut largest: Option<(usize, Vec<usize>, Part)> = None;
     for flat in 0..total {
         // Mixed-radix digits of `flat`, last axis fastest.
         let mut rem = flat;
@@ -103,7 +128,7 @@ pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigErr
             .map(|(a, &i)| (a.name.clone(), a.values[i].label.clone()))
             .collect();
         match sweep.case(&chosen, &base_value) {
-            Ok(config) => {
+            Ok((config, estimate)) => {
                 let id = if params.is_empty() {
                     config.name.clone()
                 } else {
@@ -113,7 +138,16 @@ pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigErr
                     file: origin.into(),
                     message: e.to_string(),
                 })?;
-                cases.push(Case { id, params, config, yaml });
+                if largest.as_ref().is_none_or(|(_, _, p)| estimate.output_part.bytes > p.bytes) {
+                    largest = Some((cases.len(), chosen.clone(), estimate.output_part.clone()));
+                }
+                cases.push(Case {
+                    id,
+                    params,
+                    config,
+                    yaml,
+                    estimate,
+                });
             }
             Err(case_errors) => {
                 let name = params.iter().map(|(a, l)| format!("{a}={l}")).collect::<Vec<_>>().join(", ");
@@ -127,8 +161,34 @@ pub fn expand(text: &str, origin: &str) -> Result<(String, Vec<Case>), ConfigErr
             }
         }
     }
+    let output: f64 = cases.iter().map(|c| c.estimate.output).sum();
+    if let (true, Some((k, chosen, part))) = (errors.is_empty() && output > limits.max_output, largest) {
+        let line = sweep
+            .setter_line(&chosen, &part.field)
+            .or_else(|| config::locate_line(text, &part.field))
+            .or_else(|| config::locate_line(text, "name"));
+        errors.push(ValueError {
+            file: origin.into(),
+            line,
+            field: part.field.clone(),
+            message: format!(
+                "estimated output {} (uncompressed result.h5 and replay.mcap of {} case(s)) exceeds the limit of {} per run; the largest part: case `{}`, {}: {}; record fewer steps (`outputs.every`), or {}",
+                bytes_text(output),
+                cases.len(),
+                bytes_text(limits.max_output),
+                cases[k].id,
+                part.what,
+                bytes_text(part.bytes),
+                Limits::remedy("max_output_gb")
+            ),
+        });
+    }
     if errors.is_empty() {
-        Ok((base.name, cases))
+        Ok(Expanded {
+            name: base.name,
+            cases,
+            limits,
+        })
     } else {
         Err(ConfigError::Values(errors))
     }
@@ -183,12 +243,15 @@ struct Sweep<'a> {
     text: &'a str,
     origin: &'a str,
     axes: &'a [SweepAxis],
+    /// The run's limits, from the file's `limits` and `--allow-large`.
+    limits: Limits,
 }
 
 impl Sweep<'_> {
-    /// The base with the chosen value of each axis set, deserialized and validated. An
-    /// error points at the sweep value that set its field, else at the field in the base.
-    fn case(&self, chosen: &[usize], base: &Value) -> Result<CaseConfig, Vec<ValueError>> {
+    /// The base with the chosen value of each axis set, deserialized and validated, with
+    /// its estimate. An error points at the sweep value that set its field, else at the
+    /// field in the base.
+    fn case(&self, chosen: &[usize], base: &Value) -> Result<(CaseConfig, Estimate), Vec<ValueError>> {
         let mut v = base.clone();
         let mut errors = Vec::new();
         for (a, &i) in chosen.iter().enumerate() {
@@ -201,8 +264,23 @@ impl Sweep<'_> {
         if !errors.is_empty() {
             return Err(errors);
         }
-        let config: CaseConfig = serde_json::from_value(v).map_err(|e| self.unreadable(chosen, base, e.to_string()))?;
-        config.validate().map_err(|errors| {
+        let mut config: CaseConfig = serde_json::from_value(v).map_err(|e| self.unreadable(chosen, base, e.to_string()))?;
+        // A sweep value may name a table file the base does not.
+        config.resolve_tables(config::config_dir(self.origin)).map_err(|errors| {
+            errors
+                .into_iter()
+                .map(|e| match e {
+                    TableError::Field(e) => {
+                        let line = self
+                            .setter_line(chosen, &e.field)
+                            .or_else(|| config::locate_line(self.text, &e.field));
+                        self.error(line, e.field, e.message)
+                    }
+                    TableError::Csv(e) => e,
+                })
+                .collect::<Vec<_>>()
+        })?;
+        let estimate = config.validate_with(&self.limits).map_err(|errors| {
             errors
                 .into_iter()
                 .map(|e| {
@@ -213,7 +291,7 @@ impl Sweep<'_> {
                 })
                 .collect::<Vec<_>>()
         })?;
-        Ok(config)
+        Ok((config, estimate))
     }
 
     /// A case that does not deserialize (a wrong type or conflicting keys): each chosen

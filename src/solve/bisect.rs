@@ -1,9 +1,13 @@
 /// Reaches `to` from `from` (fractions of an increment: load or displacement fraction in a
 /// static stage, fraction of Δt in a time step) by `step(from, to)`; where a step fails it
-/// is split at its midpoint, recursively up to `max_cuts` deep (2^max_cuts sub-steps), and
-/// the first error that cannot be cut further is returned. `step` must leave its state as
-/// it was when it fails. Returns the sub-steps' reports merged by `merge`, and whether any
-/// step was cut.
+/// is split at its midpoint and its halves are taken in order, each split again where it
+/// fails, down to `max_cuts` halvings (2^max_cuts sub-steps); the first sub-step that fails
+/// with no halving left returns its error. `step` must leave its state as it was when it
+/// fails. Returns the sub-steps' reports merged by `merge` in order (first with second,
+/// that with the third, ...), and whether any step was cut.
+///
+/// Iterative: the sub-intervals still to take are kept on a heap stack of at most
+/// `max_cuts + 1` entries (the pending right halves), so the depth costs no call stack.
 ///
 /// The fractions stay dyadic for a whole Δt (0, ½, ¼, ...), so a time step's sub-steps
 /// are exact halves.
@@ -14,16 +18,29 @@ pub fn bisect<R, E>(
     step: &mut dyn FnMut(f64, f64) -> Result<R, E>,
     merge: &dyn Fn(R, R) -> R,
 ) -> Result<(R, bool), E> {
-    match step(from, to) {
-        Ok(r) => Ok((r, false)),
-        Err(e) if max_cuts == 0 => Err(e),
-        Err(_) => {
-            let mid = 0.5 * (from + to);
-            let (first, _) = bisect(from, mid, max_cuts - 1, step, merge)?;
-            let (second, _) = bisect(mid, to, max_cuts - 1, step, merge)?;
-            Ok((merge(first, second), true))
+    // Sub-intervals still to take, the next one last, each with the halvings it has left.
+    let mut pending = vec![(from, to, max_cuts)];
+    let mut merged: Option<R> = None;
+    let mut cut = false;
+    while let Some((a, b, cuts)) = pending.pop() {
+        match step(a, b) {
+            Ok(r) => {
+                merged = Some(match merged.take() {
+                    Some(m) => merge(m, r),
+                    None => r,
+                })
+            }
+            Err(e) if cuts == 0 => return Err(e),
+            Err(_) => {
+                let mid = 0.5 * (a + b);
+                pending.push((mid, b, cuts - 1));
+                pending.push((a, mid, cuts - 1));
+                cut = true;
+            }
         }
     }
+    // The stack empties only after a sub-step succeeded: the last one taken.
+    Ok((merged.expect("a sub-step succeeded"), cut))
 }
 
 #[cfg(test)]
@@ -52,5 +69,48 @@ mod tests {
             Err(0.5)
         );
         assert_eq!(bisect(0.0, 0.2, 0, &mut |_, _| Ok::<_, ()>(7), &|x, y| x + y), Ok((7, false)));
+    }
+
+    /// A step that succeeds only when short (≤ 2^-depth) or away from 0: [0, 1] is cut
+    /// `depth` times down to [0, 2^-depth], then taken back up in doubling steps,
+    /// `depth + 1` sub-steps tiling [0, 1] in order. At 40 cuts (more than validation
+    /// allows) and at 1000 (near the last halving an f64 interval at 0 has), on a thread
+    /// with a 64 KiB stack: the depth costs no call stack.
+    #[test]
+    fn deep_cuts_take_no_call_stack() {
+        for depth in [40_u32, 1000] {
+            let run = move || {
+                let tiny = 0.5_f64.powi(depth as i32);
+                let mut taken = Vec::new();
+                let mut step = |a: f64, b: f64| {
+                    if b - a > tiny && a == 0.0 {
+                        Err((a, b))
+                    } else {
+                        taken.push((a, b));
+                        Ok(1_u64)
+                    }
+                };
+                let (count, cut) = bisect(0.0, 1.0, depth, &mut step, &|x, y| x + y).unwrap();
+                assert_eq!((count, cut), (u64::from(depth) + 1, true));
+                assert_eq!(taken[0], (0.0, tiny));
+                assert!(taken.windows(2).all(|w| w[0].1 == w[1].0 && w[1].1 == 2.0 * w[1].0));
+                assert_eq!(taken.last(), Some(&(0.5, 1.0)));
+                // One halving fewer than needed: the error of [0, 2^-(depth-1)].
+                let short = bisect(
+                    0.0,
+                    1.0,
+                    depth - 1,
+                    &mut |a, b| if b - a > tiny && a == 0.0 { Err((a, b)) } else { Ok(1) },
+                    &|x, y| x + y,
+                );
+                assert_eq!(short, Err((0.0, 2.0 * tiny)));
+            };
+            std::thread::Builder::new()
+                .stack_size(64 * 1024)
+                .spawn(run)
+                .unwrap()
+                .join()
+                .unwrap();
+        }
     }
 }

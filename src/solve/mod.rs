@@ -8,6 +8,6 @@ mod newton;
 pub use bisect::bisect;
 pub use linear::{DenseSolver, LinearError, SparseSolver, TangentSink, TangentSolver};
 pub use newton::{
-    newton, LinearSolverChoice, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentUpdate,
+    newton, LinearSolverChoice, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentUpdate, DENSE_LIMIT,
     REUSE_CONTRACTION,
 };

@@ -3,6 +3,7 @@
 //! equilibrium by the common Newton driver at every step. A step that fails is split in
 //! halves (bounded); line search did not help in a prototype, sub-stepping did.
 
+use super::eigen::{modes, tangent_matrix};
 use super::frames::{non_finite, FrameBuilder};
 use super::{record_error, solve_error, Analysis, Settings, StaticEquilibrium};
 use crate::dynamics::Energy;
@@ -40,6 +41,9 @@ pub struct Folding {
     pub max_cuts: u32,
     /// Applied in order; a later prescription of the same node direction wins.
     pub prescribe: Vec<Prescription>,
+    /// The lowest this many eigenvalues at every step (0: none), with the prescribed
+    /// directions held: where along the path the structure softens.
+    pub modes: usize,
 }
 
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
@@ -50,6 +54,20 @@ pub struct FoldSummary {
     pub cut_steps: usize,
     /// Final height over initial height (max z − min z).
     pub height_ratio: f64,
+    /// The lowest eigenvalues at every step, when asked for (`folding.eigen`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub modes: Vec<PathModes>,
+}
+
+/// The lowest eigenvalues of K_T φ = ω² M φ at one folding step, prescribed directions
+/// held.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct PathModes {
+    pub step: usize,
+    /// ω² ascending [rad²/s²]; negative: unstable.
+    pub omega2: Vec<f64>,
+    /// The direction the lowest mode moves most (node and axis).
+    pub lowest_at: String,
 }
 
 /// (node, axis, start value, target value) of every prescribed direction [m].
@@ -131,6 +149,20 @@ impl Fold<'_> {
     }
 }
 
+/// The lowest `count` modes of the structure at the state of `asm` (its free DOFs).
+fn path_modes(structure: &Structure, asm: &Assembly, step: usize, count: usize) -> Result<PathModes> {
+    let dofs = asm.dofs;
+    let m = modes(&tangent_matrix(asm), &structure.free_masses(dofs), dofs, &structure.model)?;
+    let lowest = (0..dofs.len())
+        .max_by(|&a, &b| m.shapes[(a, 0)].abs().total_cmp(&m.shapes[(b, 0)].abs()))
+        .unwrap_or(0);
+    Ok(PathModes {
+        step,
+        omega2: m.omega2.iter().take(count).copied().collect(),
+        lowest_at: dofs.label(&structure.model, lowest),
+    })
+}
+
 /// The free DOFs left when `prescribed` directions are imposed.
 fn free_dofs(model: &Model, prescribed: &Prescribed) -> DofMap {
     let mut mask = vec![[false; 3]; model.node_count()];
@@ -197,6 +229,9 @@ impl Analysis for Folding {
                 });
             }
             record(&fold, step, recorder)?;
+            if self.modes > 0 {
+                summary.modes.push(path_modes(structure, &fold.problem.asm, step, self.modes)?);
+            }
         }
         recorder.end_stage(Stage::Folding).map_err(record_error("folding"))?;
         summary.height_ratio = height(&fold.problem.asm.x) / h0;

@@ -1,11 +1,13 @@
-//! A time-stepping stage (free vibration, deployment): Newmark from a given state under a
-//! nodal load, every converged step recorded, with the figures the checks need.
+//! A time-stepping stage (free vibration, deployment): Newmark from a given state (with
+//! initial displacements and velocities added) under the structure's constant load, nodal
+//! loads with time functions and ground motion, every converged step recorded, with the
+//! figures the checks need.
 
 use super::frames::{non_finite, FrameBuilder};
 use super::{record_error, solve_error, Analysis, Settings};
-use crate::dynamics::{Damping, DampingTangent, Integrator, Newmark, NewmarkParams, NodalLoad, Rayleigh};
+use crate::dynamics::{Damping, DampingTangent, Energy, FreeLoads, Integrator, Loads, Newmark, NewmarkParams, Rayleigh};
 use crate::error::{Error, Result};
-use crate::model::MemberKind;
+use crate::model::{MemberKind, Model};
 use crate::record::{Recorder, Stage};
 use crate::structure::{State, Structure};
 use crate::tsm::{Assembly, DofMap};
@@ -21,7 +23,47 @@ pub struct Transient {
     /// With the structure's Rayleigh damping; undamped otherwise.
     pub damped: bool,
     pub tangent: DampingTangent,
-    pub load: Option<NodalLoad>,
+    /// Nodal loads and ground motion (the structure's constant load acts besides).
+    pub loads: Loads,
+    /// What is added to the state the stage starts from.
+    pub initial: Initial,
+}
+
+/// Initial conditions on top of the state a transient starts from.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Initial {
+    /// Displacement added to a node's position [m] (entries on one node add up).
+    pub displacement: Vec<(usize, Vector3<f64>)>,
+    /// Velocity set on a node [m/s] (a later entry on the same node wins).
+    pub velocity: Vec<(usize, Vector3<f64>)>,
+    /// Start with a = 0 instead of the acceleration consistent with the loads.
+    pub zero_acceleration: bool,
+}
+
+impl Initial {
+    /// `state` with the displacements added and the velocities set; a non-zero value on
+    /// a supported direction is an error naming the node and direction.
+    pub fn apply(&self, model: &Model, mut state: State) -> std::result::Result<State, String> {
+        for (what, entries) in [("displacement", &self.displacement), ("velocity", &self.velocity)] {
+            for (n, value) in entries {
+                if let Some(a) = (0..3).find(|&a| model.nodes[*n].support[a] && value[a] != 0.0) {
+                    return Err(format!(
+                        "initial {what} {} on node `{}` direction {}, which is supported",
+                        value[a],
+                        model.nodes[*n].id,
+                        ["x", "y", "z"][a]
+                    ));
+                }
+            }
+        }
+        for (n, d) in &self.displacement {
+            state.positions[*n] += d;
+        }
+        for (n, v) in &self.velocity {
+            state.velocities[*n] = *v;
+        }
+        Ok(state)
+    }
 }
 
 /// Figures of a finished transient stage.
@@ -37,8 +79,9 @@ pub struct TransientSummary {
     pub max_balance_error: f64,
     /// max over steps of max(KE, SE) [J], the scale of the balance error.
     pub max_energy: f64,
-    /// Largest rise of KE + SE from one step to the next once the load has ended [J]
-    /// (damped: never positive beyond round-off).
+    /// Largest rise of KE + SE from one step to the next once the loads have stopped
+    /// changing [J] (less the external work W when a load stays on, e.g. gravity; damped:
+    /// never positive beyond round-off).
     pub max_mechanical_rise: f64,
     /// Largest cable stretch l/l0 over the stage.
     pub max_cable_stretch: f64,
@@ -49,13 +92,15 @@ pub struct TransientSummary {
 }
 
 impl TransientSummary {
-    /// Takes in one converged step at stage time `time`; `load_end` is when the load stops.
-    fn add_step(&mut self, nm: &Newmark, time: f64, load_end: f64, dt: f64, mechanical: &mut f64) {
+    /// Takes in one converged step at stage time `time`; `load_end` is when the loads
+    /// stop changing; `loaded` whether some load stays on after that (then the mechanical
+    /// energy counted is KE + SE − W, which a constant load leaves conserved).
+    fn add_step(&mut self, nm: &Newmark, time: f64, (load_end, loaded): (f64, bool), dt: f64, mechanical: &mut f64) {
         let e = nm.energy;
         self.max_kinetic = self.max_kinetic.max(e.kinetic);
         self.max_energy = self.max_energy.max(e.kinetic.max(e.strain));
         self.max_balance_error = self.max_balance_error.max(nm.balance_error());
-        let now = e.kinetic + e.strain;
+        let now = mechanical_energy(&e, loaded);
         if time - dt > load_end {
             self.max_mechanical_rise = self.max_mechanical_rise.max(now - *mechanical);
         }
@@ -86,8 +131,8 @@ impl Transient {
 impl Analysis for Transient {
     type Summary = TransientSummary;
 
-    /// Runs from `state`'s positions and velocities, with the acceleration consistent
-    /// with the load at t = 0.
+    /// Runs from `state`'s positions and velocities with the initial conditions applied,
+    /// with the acceleration consistent with the loads at t = 0 (or zero).
     fn run(
         &self,
         structure: &Structure,
@@ -98,21 +143,27 @@ impl Analysis for Transient {
         let name = self.stage.name();
         let model = &structure.model;
         let dofs = DofMap::new(model, &[]);
-        let load_free = |t: f64, f: &mut [f64]| {
-            f.fill(0.0);
-            if let Some(load) = &self.load {
-                load.add_free(t, &dofs, f);
-            }
-        };
+        let state = self
+            .initial
+            .apply(model, state)
+            .map_err(|reason| Error::Stage { stage: name, reason })?;
+        let masses = structure.free_masses(&dofs);
+        let constant = structure.constant_load();
+        let loads = FreeLoads::new(&self.loads, &constant, &masses, &dofs);
+        let load_free = |t: f64, f: &mut [f64]| loads.at(t, &dofs, f);
         let started = std::time::Instant::now();
         let mut f0 = vec![0.0; dofs.len()];
         load_free(0.0, &mut f0);
         let v0 = state.free_velocities(&dofs);
         let asm = Assembly::new(model, &structure.elements, &dofs, state.positions);
-        let mut nm = Newmark::new(asm, structure.free_masses(&dofs), v0, f0, &self.integrator(structure, settings));
+        let mut nm = Newmark::new(asm, masses, v0, f0, &self.integrator(structure, settings));
+        if self.initial.zero_acceleration {
+            nm.start_with_zero_acceleration();
+        }
         let dt = self.params.dt;
         let steps = (self.duration / dt).round() as usize;
-        let load_end = self.load.as_ref().map_or(0.0, |l| l.duration);
+        let loaded = constant.iter().any(|f| *f != Vector3::zeros()) || self.loads.persist();
+        let load_end = (self.loads.end(), loaded);
         let mut summary = TransientSummary {
             steps,
             ..Default::default()
@@ -125,7 +176,7 @@ impl Analysis for Transient {
                 .map_err(record_error(name))
         };
         record(&nm, 0, recorder)?;
-        let mut mechanical = nm.energy.kinetic + nm.energy.strain;
+        let mut mechanical = mechanical_energy(&nm.energy, load_end.1);
         for step in 1..=steps {
             let time = step as f64 * dt;
             let report = nm
@@ -151,6 +202,14 @@ impl Analysis for Transient {
         summary.wall_seconds = started.elapsed().as_secs_f64();
         Ok((final_state(&nm, &dofs), summary))
     }
+}
+
+/// KE + SE, less the external work W when a load stays on (KE + SE − W is then what a
+/// constant load conserves; without one W no longer changes and is left out, so that the
+/// figure is KE + SE exactly).
+fn mechanical_energy(e: &Energy, loaded: bool) -> f64 {
+    let work = if loaded { e.external } else { 0.0 };
+    e.kinetic + e.strain - work
 }
 
 /// The converged end of a Newmark run as a state over every node.

@@ -1,0 +1,301 @@
+//! Work limits that a config may raise, and the estimates they are checked against: the
+//! output a case writes and the memory it needs at its peak, both computed from the config
+//! and the model's size before anything is run.
+//!
+//! The estimates are deliberately simple and on the high side. Output: the uncompressed
+//! bytes of `result.h5` and `replay.mcap` (the files on disk are compressed, several times
+//! smaller; docs/config.md gives measured ratios). Memory: the largest dense matrices a
+//! stage holds at once plus the per-node and per-member buffers and the output writers'
+//! bounded queues.
+
+use super::schema::CaseConfig;
+use crate::model::Model;
+use crate::solve::{LinearSolverChoice, DENSE_LIMIT};
+
+/// Default limit on the estimated output of one run [GB]: far above the runs tsim ships
+/// (configs/sweep.yaml, 27 cases, about 2 GB uncompressed) and below a laptop's free disk
+/// or a cluster's home quota; a config that asks for more has most likely a step count or
+/// `outputs.every` it did not mean (a runaway prism wrote 1.3 GB per 30 s).
+pub const MAX_OUTPUT_GB: f64 = 50.0;
+/// Default limit on the estimated peak memory of one case [GB]: what a workstation or a
+/// cluster task commonly has. Cases running at once (`--jobs`) add up.
+pub const MAX_MEMORY_GB: f64 = 16.0;
+/// Default limit on the steps of one stage (time steps, `folding.steps`): the paper's
+/// deployment has 16 000.
+pub const MAX_STEPS: u64 = 100_000_000;
+
+/// The `limits` section: raises (or lowers) the limits above. It belongs to the run, not
+/// to a case: only the top-level file's section counts, and it is left out of every case's
+/// resolved config (`case.yaml`), so that changing it never reruns a complete case.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitSpec {
+    /// Estimated output of the whole run (every case's uncompressed result.h5 and replay.mcap) [GB].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_output_gb: Option<f64>,
+    /// Estimated peak memory of one case [GB].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_memory_gb: Option<f64>,
+    /// Steps of one stage.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_steps: Option<u64>,
+}
+
+impl LimitSpec {
+    /// Nothing given: the section is not written.
+    pub fn is_unset(&self) -> bool {
+        *self == LimitSpec::default()
+    }
+}
+
+/// The limits in force for a run: the `limits` section over the defaults, or none at all
+/// with `--allow-large`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    /// [bytes]
+    pub max_output: f64,
+    /// [bytes]
+    pub max_memory: f64,
+    pub max_steps: u64,
+    /// Lifted by `--allow-large`.
+    pub lifted: bool,
+}
+
+impl Limits {
+    pub fn new(spec: &LimitSpec, allow_large: bool) -> Self {
+        if allow_large {
+            return Limits {
+                max_output: f64::INFINITY,
+                max_memory: f64::INFINITY,
+                max_steps: u64::MAX,
+                lifted: true,
+            };
+        }
+        Limits {
+            max_output: spec.max_output_gb.unwrap_or(MAX_OUTPUT_GB) * 1e9,
+            max_memory: spec.max_memory_gb.unwrap_or(MAX_MEMORY_GB) * 1e9,
+            max_steps: spec.max_steps.unwrap_or(MAX_STEPS),
+            lifted: false,
+        }
+    }
+
+    /// How to get past `key`'s limit, for error messages.
+    pub fn remedy(key: &str) -> String {
+        format!("raise `limits.{key}` in the config, or run with --allow-large")
+    }
+}
+
+/// One part of an estimate: what it is, the config key that sets its size, its bytes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Part {
+    /// The dotted field that drives it, where an error about it is reported.
+    pub field: String,
+    /// The stage and what it holds or writes, with the figures.
+    pub what: String,
+    pub bytes: f64,
+}
+
+/// What a case is estimated to write and to need, with the largest part of each.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Estimate {
+    /// Uncompressed result.h5 + replay.mcap [bytes].
+    pub output: f64,
+    pub output_part: Part,
+    /// Peak memory [bytes].
+    pub memory: f64,
+    pub memory_part: Part,
+}
+
+/// Bytes as `12.3 MB` (decimal units, as the limits are given).
+pub fn bytes_text(b: f64) -> String {
+    let units = ["B", "kB", "MB", "GB", "TB", "PB", "EB"];
+    let mut v = b;
+    let mut u = 0;
+    while v >= 1000.0 && u + 1 < units.len() {
+        v /= 1000.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{v:.0} B")
+    } else if v >= 1000.0 {
+        format!("{v:.1e} {}", units[u])
+    } else {
+        format!("{v:.1} {}", units[u])
+    }
+}
+
+/// Bytes of one MCAP message record's header (opcode, length, channel, sequence, times).
+const MCAP_RECORD: f64 = 31.0;
+/// Per member: its end points in the scene (2 × Point3 of three tagged doubles, with
+/// tags and lengths) and its force record (tag, force, framing), id bytes apart.
+const MCAP_PER_MEMBER: f64 = 2.0 * (3.0 * 9.0 + 2.0) + 13.0;
+/// A frame's fixed part: the scene's entity, line headers and timestamp, the members
+/// message head, the energy message, and three record headers.
+const MCAP_PER_FRAME: f64 = 300.0 + 3.0 * MCAP_RECORD;
+
+/// Buffers per node [bytes]: positions, velocities, accelerations, forces and their trial
+/// copies in the assembly, the Newmark and Newton workspaces, the state handed between
+/// stages and the frame builder (some 40 vectors of 3 doubles), with the node itself.
+const MEMORY_PER_NODE: f64 = 1200.0;
+/// Buffers per member [bytes]: its state (length, direction, force, stiffness), law and
+/// rest length, id and groups, and its 36 cached slots in the sparse tangent.
+const MEMORY_PER_MEMBER: f64 = 800.0;
+/// Output writers: HDF5 chunk buffers and the writer thread's queue, each about 1 MiB or
+/// a frame when frames are larger (`output::background`, `output::h5`), MCAP's chunk.
+const WRITER_BLOCKS: f64 = 16.0;
+const WRITER_FIXED: f64 = 16e6;
+/// The sparse Cholesky factor and its LU fallback, taken as this many times the tangent's
+/// pattern (fill-in depends on the ordering; the dense stability checks dominate long
+/// before this term does).
+const SPARSE_FILL: f64 = 20.0;
+
+/// Dense n × n matrices held at the peak of a stability check (after form-finding and
+/// after substitution: K_T and faer's eigen decomposition of it, eigenvectors included),
+/// and of the eigen stage (one more, the mass-scaled matrix). Measured: peak RSS less the
+/// other buffers is 4.6 n² × 8 B and 5.6 n² × 8 B on a 60-stage, 8-strut tower (2869
+/// free DOF), 5.4 n² × 8 B for the eigen stage at 1909 free DOF.
+const STABILITY_MATRICES: f64 = 5.0;
+const EIGEN_MATRICES: f64 = 6.0;
+/// HDF5 model variables per node and per member: ids and groups as fixed-length strings,
+/// coordinates, supports, masses, rest lengths [bytes].
+const H5_PER_ITEM: f64 = 200.0;
+
+/// A dense matrix of the free DOFs [bytes].
+fn dense(n: f64) -> f64 {
+    n * n * 8.0
+}
+
+impl CaseConfig {
+    /// Output and peak memory of this case on `model` (its valid model). The stage values
+    /// must be valid (positive dt, duration, steps).
+    pub fn estimate(&self, model: &Model) -> Estimate {
+        let nodes = model.node_count() as f64;
+        let members = model.members.len() as f64;
+        let n = (3 * model.node_count()).saturating_sub(model.support_count()) as f64;
+        let ids: f64 = model.members.iter().map(|m| m.id.len() as f64).sum();
+        let every = self.outputs.every.max(1) as f64;
+        let (h5, mcap) = (self.outputs.hdf5, self.outputs.mcap);
+        let on = |yes: bool, bytes: f64| if yes { bytes } else { 0.0 };
+        // One recorded frame: time (and fraction), position, velocity (time stepping only),
+        // member force and length, four energies; the MCAP scene, forces and energy.
+        let frame = |dynamic: bool| {
+            let vectors = if dynamic { 6.0 } else { 3.0 };
+            on(h5, 8.0 * (2.0 + vectors * nodes + 2.0 * members + 4.0)) + on(mcap, MCAP_PER_FRAME + MCAP_PER_MEMBER * members + ids)
+        };
+        let mut output = vec![Part {
+            field: "model".into(),
+            what: format!("the model and form-finding's equilibrium ({nodes} nodes, {members} members)"),
+            bytes: 2.0 * frame(false) + on(h5, H5_PER_ITEM * (nodes + members)),
+        }];
+        let mut frames_of = |stage: &str, field: &str, steps: f64, dynamic: bool, how: String| {
+            let frames = if dynamic {
+                (steps / every).floor() + 1.0 + f64::from(steps % every != 0.0)
+            } else {
+                steps + 1.0
+            };
+            output.push(Part {
+                field: field.into(),
+                what: format!(
+                    "{stage}: {frames} recorded frames ({how}) of {nodes} nodes and {members} members, {} each",
+                    bytes_text(frame(dynamic))
+                ),
+                bytes: frames * frame(dynamic),
+            });
+        };
+        for (stage, t) in [("free_vibration", &self.free_vibration), ("deployment", &self.deployment)] {
+            if let Some(t) = t {
+                let steps = (t.duration / t.dt).round();
+                let how = format!(
+                    "duration {} s / dt {} s = {steps} steps, every {}",
+                    t.duration, t.dt, self.outputs.every
+                );
+                frames_of(stage, &format!("{stage}.duration"), steps, true, how);
+            }
+        }
+        if let Some(f) = &self.folding {
+            frames_of("folding", "folding.steps", f.steps as f64, false, format!("{} steps", f.steps));
+        }
+        if let Some(s) = &self.statics {
+            // Under displacement control gravity takes its own `steps` first.
+            let steps = s.steps as f64 * if s.control.is_some() { 2.0 } else { 1.0 };
+            frames_of("static", "static.steps", steps, false, format!("{steps} steps"));
+        }
+        if self.eigen.is_some() {
+            // Mode shapes (mode, node, xyz), ω², frequencies; MCAP has only a stage message.
+            output.push(Part {
+                field: "eigen".into(),
+                what: format!("eigen: {n} mode shapes of {nodes} nodes"),
+                bytes: on(h5, 8.0 * n * (3.0 * nodes + 3.0)),
+            });
+        }
+
+        // Memory: the stages run one after another, so the peak is the largest stage's
+        // matrices on top of what every stage holds.
+        let newton = match self.newton.linear_solver {
+            LinearSolverChoice::Dense => true,
+            LinearSolverChoice::Sparse => false,
+            LinearSolverChoice::Auto => n <= DENSE_LIMIT as f64,
+        };
+        let solver = if newton {
+            Part {
+                field: "newton.linear_solver".into(),
+                what: format!("Newton's dense tangent and its factor on {n} free DOF (2 n² × 8 B)"),
+                bytes: 2.0 * dense(n),
+            }
+        } else {
+            let pattern = 9.0 * nodes + 18.0 * members;
+            Part {
+                field: "model".into(),
+                what: format!("Newton's sparse tangent on {n} free DOF, its factor taken as {SPARSE_FILL}× the pattern"),
+                bytes: pattern * 16.0 * (1.0 + SPARSE_FILL),
+            }
+        };
+        let stability = |stage: &str| Part {
+            field: "model".into(),
+            what: format!("{stage}: the stability check's dense K_T and its eigen decomposition on {n} free DOF (5 n² × 8 B)"),
+            bytes: STABILITY_MATRICES * dense(n),
+        };
+        let mut stages = vec![solver, stability("substitution")];
+        if self.eigen.is_some() {
+            stages.push(Part {
+                field: "eigen".into(),
+                what: format!(
+                    "eigen: dense K_T, the mass-scaled matrix, its eigen decomposition and the mode shapes on {n} free DOF (6 n² × 8 B)"
+                ),
+                bytes: EIGEN_MATRICES * dense(n),
+            });
+        }
+        let largest_frame = frame(true).max(frame(false));
+        let buffers = Part {
+            field: "model".into(),
+            what: format!("buffers of {nodes} nodes and {members} members, and the output writers"),
+            bytes: MEMORY_PER_NODE * nodes
+                + MEMORY_PER_MEMBER * members
+                + on(h5 || mcap, WRITER_FIXED + WRITER_BLOCKS * largest_frame.max(1e6)),
+        };
+        let largest = |parts: Vec<Part>| parts.into_iter().max_by(|a, b| a.bytes.total_cmp(&b.bytes)).unwrap_or_default();
+        let output_total = output.iter().map(|p| p.bytes).sum();
+        let stage = largest(stages);
+        let memory = buffers.bytes + stage.bytes;
+        let memory_part = largest(vec![stage, buffers]);
+        Estimate {
+            output: output_total,
+            output_part: largest(output),
+            memory,
+            memory_part,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::bytes_text;
+
+    #[test]
+    fn bytes_read_in_decimal_units() {
+        assert_eq!(bytes_text(512.0), "512 B");
+        assert_eq!(bytes_text(61_234_567.0), "61.2 MB");
+        assert_eq!(bytes_text(5e10), "50.0 GB");
+        assert_eq!(bytes_text(3e24), "3.0e6 EB");
+    }
+}

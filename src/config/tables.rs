@@ -1,0 +1,162 @@
+//! Time tables from CSV files: `time: {table: {file: rec.csv}}` is read, relative to the
+//! config file's directory, into the table's `points` when the config is loaded, so that
+//! the resolved config (`case.yaml`) holds the values the case ran with and no later step
+//! touches the file.
+
+use super::loading::TimeFunctionSpec;
+use super::schema::CaseConfig;
+use super::validate::{FieldError, ValueError};
+use std::path::Path;
+
+/// A table that could not be read: a field of the config (the file is missing, located
+/// by the caller at the field's line) or a line of the CSV file.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TableError {
+    Field(FieldError),
+    Csv(ValueError),
+}
+
+impl CaseConfig {
+    /// Every time function of the config with its dotted field path.
+    fn time_functions_mut(&mut self) -> Vec<(String, &mut TimeFunctionSpec)> {
+        let mut out = Vec::new();
+        for (name, stage) in [("free_vibration", &mut self.free_vibration), ("deployment", &mut self.deployment)] {
+            let Some(t) = stage else { continue };
+            for (k, l) in t.loads.iter_mut().enumerate() {
+                out.push((format!("{name}.loads[{k}].time"), &mut l.time));
+            }
+            if let Some(g) = &mut t.ground_motion {
+                out.push((format!("{name}.ground_motion.time"), &mut g.time));
+            }
+        }
+        out
+    }
+
+    /// Reads every table given by `file` (relative to `dir`) into its `points` and drops
+    /// the file name; reports every problem of every table.
+    pub fn resolve_tables(&mut self, dir: &Path) -> Result<(), Vec<TableError>> {
+        let mut errors = Vec::new();
+        for (field, spec) in self.time_functions_mut() {
+            let TimeFunctionSpec::Table { file, points } = spec else { continue };
+            // With both given, `validate` reports it; the file is not read.
+            let (Some(name), true) = (file.as_ref(), points.is_empty()) else {
+                continue;
+            };
+            let field = format!("{field}.table.file");
+            let path = dir.join(name);
+            match std::fs::read_to_string(&path) {
+                Ok(text) => match parse_table(&text, &path.display().to_string(), &field) {
+                    Ok(read) => (*points, *file) = (read, None),
+                    Err(e) => errors.extend(e.into_iter().map(TableError::Csv)),
+                },
+                Err(e) => errors.push(TableError::Field(FieldError {
+                    field,
+                    message: format!(
+                        "cannot read `{}`: {e}; the path is relative to the config file's directory",
+                        path.display()
+                    ),
+                })),
+            }
+        }
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(errors)
+        }
+    }
+}
+
+/// Rows `t, f` of a CSV text (comma separated; blank lines skipped; the first row may be
+/// a header), checked: two finite numbers a row, times strictly increasing, at least two
+/// rows. Every bad row is reported at its line of `file`.
+pub fn parse_table(text: &str, file: &str, field: &str) -> Result<Vec<[f64; 2]>, Vec<ValueError>> {
+    let error = |line: Option<usize>, message: String| ValueError {
+        file: file.to_string(),
+        line,
+        field: field.to_string(),
+        message,
+    };
+    let mut errors = Vec::new();
+    let mut points: Vec<[f64; 2]> = Vec::new();
+    let mut last: Option<(f64, usize)> = None;
+    let mut first_row = true;
+    for (k, raw) in text.lines().enumerate() {
+        let line = k + 1;
+        let row = raw.trim();
+        if row.is_empty() {
+            continue;
+        }
+        let cells: Vec<&str> = row.split(',').map(str::trim).collect();
+        let numbers: Vec<Option<f64>> = cells.iter().map(|c| c.parse::<f64>().ok()).collect();
+        let header = std::mem::take(&mut first_row) && numbers.iter().all(Option::is_none);
+        if header {
+            continue;
+        }
+        let (t, f) = match numbers[..] {
+            [Some(t), Some(f)] => (t, f),
+            _ => {
+                errors.push(error(
+                    Some(line),
+                    format!("row `{row}` is not two numbers; write each row as `time, value` (comma separated)"),
+                ));
+                continue;
+            }
+        };
+        if !(t.is_finite() && f.is_finite()) {
+            errors.push(error(
+                Some(line),
+                format!("row `{row}` is not finite; every time and value must be a finite number"),
+            ));
+            continue;
+        }
+        if let Some((before, at)) = last {
+            if t <= before {
+                errors.push(error(
+                    Some(line),
+                    format!(
+                        "time {t} is not after {before} at line {at}; times must increase strictly: sort the rows and remove duplicates"
+                    ),
+                ));
+            }
+        }
+        last = Some((t, line));
+        points.push([t, f]);
+    }
+    if errors.is_empty() && points.len() < 2 {
+        errors.push(error(
+            None,
+            format!(
+                "has {} row(s) of data; a table needs at least 2 (`time, value` per line)",
+                points.len()
+            ),
+        ));
+    }
+    if errors.is_empty() {
+        Ok(points)
+    } else {
+        Err(errors)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_table;
+
+    /// A header, blank lines and spaces are allowed; the rows come out in order.
+    #[test]
+    fn reads_rows() {
+        let points = parse_table("t, a\n0, 0\n\n0.5 , 1.5\n1,-2\n", "r.csv", "f").unwrap();
+        assert_eq!(points, vec![[0.0, 0.0], [0.5, 1.5], [1.0, -2.0]]);
+    }
+
+    /// Each kind of bad row is reported at its line, all of them.
+    #[test]
+    fn reports_bad_rows_at_their_lines() {
+        let errors = parse_table("0,0\n1;2\nnan,1\n0.5,1\n0.5,2\n", "r.csv", "f").unwrap_err();
+        let lines: Vec<Option<usize>> = errors.iter().map(|e| e.line).collect();
+        assert_eq!(lines, vec![Some(2), Some(3), Some(5)], "{errors:?}");
+        assert!(errors[2].message.contains("not after 0.5 at line 4"), "{}", errors[2].message);
+        let one = parse_table("time,value\n0,1\n", "r.csv", "f").unwrap_err();
+        assert!(one[0].message.contains("at least 2"), "{}", one[0].message);
+    }
+}

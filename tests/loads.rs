@@ -1,0 +1,759 @@
+//! Issue 14, transient loads: nodal loads with time functions, ground acceleration, the
+//! structure's constant load (gravity), initial conditions, CSV time tables and their
+//! errors, and the energy ledger with all of them.
+//!
+//! Most checks run a linear oscillator, where Newmark's average acceleration is exactly the
+//! trapezoidal rule on (x, v): its recurrence is known in closed form for any load history,
+//! so the stage is checked against it to round-off, and against the continuous closed form
+//! within the scheme's known discretisation error.
+//!
+//! Run with `cargo test --release --test loads`.
+
+use nalgebra::{Matrix2, Vector2, Vector3};
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+use std::sync::Arc;
+use tsim::config::{parse_case, CaseConfig, NodalForceSpec, TimeFunctionSpec};
+use tsim::dynamics::{DampingTangent, GroundMotion, Loads, NewmarkParams, NodalLoad, Rayleigh, TimeFunction};
+use tsim::law::{ForceLaw, LinearElastic};
+use tsim::model::{Member, MemberKind, Model, Node};
+use tsim::pipeline::run_case;
+use tsim::record::{Energy, Frame, ModelRecord, RecordResult, Recorder, Stage};
+use tsim::stage::transient::{Initial, Transient, TransientSummary};
+use tsim::stage::{Analysis, Settings};
+use tsim::structure::{State, Structure};
+use tsim::tsm::Elements;
+
+// ---------------------------------------------------------------------------------------
+// A recorder and a linear oscillator
+// ---------------------------------------------------------------------------------------
+
+/// One recorded frame: (stage, time, positions, velocities, energy).
+type Logged = (Stage, f64, Vec<Vector3<f64>>, Vec<Vector3<f64>>, Energy);
+
+/// Every frame of every stage, and the lumped masses of the model record.
+#[derive(Default)]
+struct Log {
+    stage: Option<Stage>,
+    frames: Vec<Logged>,
+    masses: Vec<f64>,
+}
+
+impl Recorder for Log {
+    fn model(&mut self, record: &ModelRecord) -> RecordResult {
+        self.masses = record.masses.to_vec();
+        Ok(())
+    }
+    fn begin_stage(&mut self, stage: Stage) -> RecordResult {
+        self.stage = Some(stage);
+        Ok(())
+    }
+    fn frame(&mut self, f: &Frame) -> RecordResult {
+        let v = f.velocities.map_or_else(Vec::new, <[_]>::to_vec);
+        self.frames
+            .push((self.stage.expect("frame inside a stage"), f.time, f.positions.to_vec(), v, f.energy));
+        Ok(())
+    }
+}
+
+impl Log {
+    fn stage(&self, stage: Stage) -> impl Iterator<Item = &Logged> {
+        self.frames.iter().filter(move |f| f.0 == stage)
+    }
+}
+
+/// A chain of linear-elastic bars (not tension-only) along x: a fixed node at x = −1,
+/// then `masses.len()` free nodes at x = 0, 1, ... (rest length 1 m each, so the start is
+/// unstrained), each free in x only. N = EA (l − l0)/l0 is linear in l and l is a
+/// difference of x coordinates, so the x motion is exactly linear: m ẍ + K x = f. With one
+/// free node it is the oscillator m ẍ + k x = f, k = EA/l0. The rest position of the
+/// first free node is the origin (a rest position far from it raises Newton's round-off
+/// floor: tests/pipeline.rs `newmark_newton_floor_at_small_steps`).
+fn chain(k: f64, masses: &[f64]) -> Structure {
+    let node = |id: String, x: f64, support: [bool; 3]| Node {
+        id,
+        xyz: Vector3::new(x, 0.0, 0.0),
+        support,
+    };
+    let mut nodes = vec![node("ground".into(), -1.0, [true; 3])];
+    let mut members = Vec::new();
+    for i in 0..masses.len() {
+        nodes.push(node(format!("m{i}"), i as f64, [false, true, true]));
+        members.push(Member {
+            id: format!("bar{i}"),
+            nodes: [i, i + 1],
+            kind: MemberKind::Strut,
+            groups: vec![],
+        });
+    }
+    let model = Model {
+        nodes,
+        members,
+        node_groups: BTreeMap::new(),
+    };
+    let law: Arc<dyn ForceLaw> = Arc::new(LinearElastic {
+        ea: k,
+        tension_only: false,
+    });
+    let elements = Elements {
+        laws: vec![law; masses.len()],
+        rest: vec![1.0; masses.len()],
+    };
+    let mut s = Structure::massless(model, elements);
+    s.masses = std::iter::once(0.0).chain(masses.iter().copied()).collect();
+    s
+}
+
+fn transient(dt: f64, steps: usize, loads: Loads, initial: Initial) -> Transient {
+    Transient {
+        stage: Stage::FreeVibration,
+        params: NewmarkParams {
+            dt,
+            max_cuts: 0,
+            ..Default::default()
+        },
+        duration: dt * steps as f64,
+        damped: false,
+        tangent: DampingTangent::Objective,
+        loads,
+        initial,
+    }
+}
+
+/// Runs `stage` on `s` from rest at the model's positions; the log and the summary.
+fn run(s: &Structure, stage: &Transient) -> (Log, TransientSummary) {
+    let mut log = Log::default();
+    let settings = Settings {
+        every: 1,
+        ..Default::default()
+    };
+    let start = State::at_rest(s.model.positions());
+    let (_, summary) = stage
+        .run(s, start, &settings, &mut log)
+        .unwrap_or_else(|e| panic!("transient failed: {e}"));
+    (log, summary)
+}
+
+/// (x, v) of the first free node after every step, step 0 first.
+fn trajectory(log: &Log) -> Vec<(f64, f64)> {
+    log.frames.iter().map(|f| (f.2[1].x, f.3[1].x)).collect()
+}
+
+/// The exact Newmark (average acceleration) recurrence of m ẍ + k x = f(t) from rest:
+/// the trapezoidal rule on z = (x, v), z' = A z + b(t),
+/// z_{n+1} = (I − h/2 A)⁻¹ [(I + h/2 A) z_n + h/2 (b_n + b_{n+1})], b = (0, f/m)
+/// (Chopra, Dynamics of Structures, ch. 5.4; the consistent initial acceleration is
+/// implied by evaluating b at t_0).
+fn recurrence(m: f64, k: f64, dt: f64, steps: usize, z0: (f64, f64), f: impl Fn(f64) -> f64) -> Vec<(f64, f64)> {
+    let a = Matrix2::new(0.0, 1.0, -k / m, 0.0);
+    let i = Matrix2::identity();
+    let left = (i - a * (dt / 2.0)).try_inverse().unwrap();
+    let right = i + a * (dt / 2.0);
+    let mut z = Vector2::new(z0.0, z0.1);
+    let mut out = vec![(z[0], z[1])];
+    for n in 0..steps {
+        let b = Vector2::new(0.0, (f(n as f64 * dt) + f((n + 1) as f64 * dt)) / m);
+        z = left * (right * z + b * (dt / 2.0));
+        out.push((z[0], z[1]));
+    }
+    out
+}
+
+/// Largest |x − x_ref| over the run.
+fn worst(run: &[(f64, f64)], reference: impl Fn(usize) -> f64) -> f64 {
+    run.iter().enumerate().map(|(n, p)| (p.0 - reference(n)).abs()).fold(0.0, f64::max)
+}
+
+const M: f64 = 2.0;
+const K: f64 = 800.0; // ω = 20 rad/s, T = 0.314 s
+
+// ---------------------------------------------------------------------------------------
+// (a) Step load
+// ---------------------------------------------------------------------------------------
+
+/// A step force F on the oscillator from rest: x(t) = F/k (1 − cos ωt).
+///
+/// Against the recurrence (the scheme's exact answer): x_n = F/k (1 − cos nφ),
+/// φ = 2 atan(ωΔt/2) (a rotation in (x − F/k, v/ω)); 1e-10 of F/k, the round-off budget of
+/// tests/pipeline.rs `newmark_sdof_matches_closed_form_recurrence` (each step adds ~1e-16
+/// m to x ~ 1e-2 m; Newton solves a linear step to its floor in one iteration).
+///
+/// Against the continuous solution: |cos nφ − cos nωΔt| ≤ n (ωΔt − φ), Newmark's period
+/// elongation accumulated over n steps (ωΔt − φ ≈ (ωΔt)³/12 per step). That bound is
+/// exact, so the tolerance is it (plus the round-off budget); it is ~1e-3 F/k here, and a
+/// load off by one step (Δt/T = 0.5 %) or a wrong magnitude would exceed it.
+#[test]
+fn step_load_matches_closed_form() {
+    let (f, steps) = (8.0, 400); // F/k = 1 cm; two periods
+    let w = (K / M).sqrt();
+    let dt = 2.0 * PI / w / 200.0;
+    let load = NodalLoad {
+        nodes: vec![1],
+        force: Vector3::new(f, 0.0, 0.0),
+        time: TimeFunction::Step { duration: 1e3 },
+    };
+    let loads = Loads {
+        nodal: vec![load],
+        ground: None,
+    };
+    let (log, summary) = run(&chain(K, &[M]), &transient(dt, steps, loads, Initial::default()));
+    let x = trajectory(&log);
+    assert_eq!(x.len(), steps + 1);
+    let (xs, phi) = (f / K, 2.0 * (w * dt / 2.0).atan());
+    let discrete = worst(&x, |n| xs * (1.0 - (n as f64 * phi).cos()));
+    let continuous = worst(&x, |n| xs * (1.0 - (w * n as f64 * dt).cos()));
+    let bound = xs * steps as f64 * (w * dt - phi);
+    eprintln!(
+        "step load: vs recurrence {:.2e}, vs x(t) {:.2e} (period-error bound {:.2e}) of F/k",
+        discrete / xs,
+        continuous / xs,
+        bound / xs
+    );
+    assert!(discrete < 1e-10 * xs, "vs the recurrence: {:.3e} of F/k", discrete / xs);
+    assert!(continuous <= bound + 1e-10 * xs, "vs x(t): {continuous:.3e} m, bound {bound:.3e} m");
+    // The peak is the dynamic amplification 2 F/k (reached at t = T/2 and 3T/2).
+    let peak = x.iter().map(|p| p.0).fold(0.0, f64::max);
+    assert!((peak / xs - 2.0).abs() < 1e-3, "peak {:.6} F/k", peak / xs);
+    // Undamped and linear: the ledger (with the load's work) closes to round-off.
+    assert!(summary.max_balance_error < 1e-12 * summary.max_energy, "{summary:?}");
+}
+
+// ---------------------------------------------------------------------------------------
+// (b) Harmonic load
+// ---------------------------------------------------------------------------------------
+
+/// F sin Ωt from rest, Ω = ω/2: x(t) = F/k/(1 − r²) (sin Ωt − r sin ωt), r = Ω/ω.
+///
+/// Against the recurrence: 1e-10 of F/k as in (a). Against x(t): the leading error is the
+/// free part's phase drift, A_f ω t (ωΔt)²/12 with A_f = F/k r/(1 − r²): ~3.7e-4 F/k at
+/// the end (t = 3T, ωΔt = 2π/400); the forced part's error is (ΩΔt)²-small (2e-6). So
+/// 1e-3 F/k; and halving Δt must cut the error fourfold (second order: 3.6–4.4 allows
+/// the higher-order terms, ~ (ωΔt)² ≈ 2.5e-4 relative, and the round-off share).
+#[test]
+fn harmonic_load_matches_closed_form() {
+    let f0 = 8.0;
+    let w = (K / M).sqrt();
+    let r = 0.5;
+    let omega = r * w;
+    let periods = 3.0;
+    let xs = f0 / K;
+    let exact = |t: f64| xs / (1.0 - r * r) * ((omega * t).sin() - r * (w * t).sin());
+    let error_at = |per_period: usize| {
+        let dt = 2.0 * PI / w / per_period as f64;
+        let steps = (periods * per_period as f64) as usize;
+        let load = NodalLoad {
+            nodes: vec![1],
+            force: Vector3::new(f0, 0.0, 0.0),
+            time: TimeFunction::Harmonic {
+                frequency: omega / (2.0 * PI),
+                phase: 0.0,
+                duration: None,
+            },
+        };
+        let loads = Loads {
+            nodal: vec![load],
+            ground: None,
+        };
+        let (log, _) = run(&chain(K, &[M]), &transient(dt, steps, loads, Initial::default()));
+        let x = trajectory(&log);
+        let rec = recurrence(M, K, dt, steps, (0.0, 0.0), |t| f0 * (omega * t).sin());
+        let discrete = worst(&x, |n| rec[n].0);
+        let continuous = worst(&x, |n| exact(n as f64 * dt));
+        (discrete, continuous)
+    };
+    let (d1, c1) = error_at(400);
+    let (d2, c2) = error_at(800);
+    eprintln!(
+        "harmonic load: vs recurrence {:.2e} / {:.2e}, vs x(t) {:.2e} / {:.2e} of F/k (Δt, Δt/2): ratio {:.3}",
+        d1 / xs,
+        d2 / xs,
+        c1 / xs,
+        c2 / xs,
+        c1 / c2
+    );
+    assert!(d1.max(d2) < 1e-10 * xs, "vs the recurrence: {:.3e} of F/k", d1.max(d2) / xs);
+    assert!(c1 < 1e-3 * xs, "vs x(t): {:.3e} of F/k", c1 / xs);
+    assert!((3.6..=4.4).contains(&(c1 / c2)), "error ratio at Δt/2: {:.3}", c1 / c2);
+}
+
+// ---------------------------------------------------------------------------------------
+// (c) Ground motion
+// ---------------------------------------------------------------------------------------
+
+/// A ground acceleration a_g(t) (a table) on the oscillator: the relative motion is that
+/// under the force −m a_g, bit for bit (the relative formulation: the same force on the
+/// free DOF), and against the recurrence for that force to 1e-10 as in (a). A ground
+/// acceleration along a supported direction (y) moves the structure rigidly with the
+/// ground: no relative motion, no force, exactly.
+#[test]
+fn ground_acceleration_is_the_load_minus_m_a_g() {
+    let w = (K / M).sqrt();
+    let dt = 2.0 * PI / w / 200.0;
+    let steps = 400;
+    let table = TimeFunction::Table(vec![[0.0, 0.0], [0.05, 1.0], [0.1, -0.5], [0.2, 0.0]]);
+    let ag = Vector3::new(3.0, 0.0, 0.0);
+    let s = chain(K, &[M]);
+    let ground = Loads {
+        nodal: vec![],
+        ground: Some(GroundMotion {
+            acceleration: ag,
+            time: table.clone(),
+        }),
+    };
+    let force = Loads {
+        nodal: vec![NodalLoad {
+            nodes: vec![1],
+            force: -M * ag,
+            time: table.clone(),
+        }],
+        ground: None,
+    };
+    let (by_ground, _) = run(&s, &transient(dt, steps, ground, Initial::default()));
+    let (by_force, _) = run(&s, &transient(dt, steps, force, Initial::default()));
+    let (xg, xf) = (trajectory(&by_ground), trajectory(&by_force));
+    assert_eq!(xg, xf, "relative motion under a_g vs under −m a_g");
+    let rec = recurrence(M, K, dt, steps, (0.0, 0.0), |t| -M * ag.x * table.at(t));
+    let scale = M * ag.x / K;
+    let discrete = worst(&xg, |n| rec[n].0);
+    eprintln!("ground motion: vs recurrence {:.2e} of m a_g/k", discrete / scale);
+    assert!(discrete < 1e-10 * scale);
+    assert!(xg.iter().map(|p| p.0.abs()).fold(0.0, f64::max) > 0.5 * scale, "it moved");
+
+    // Along y, which the support holds: rigid motion with the ground, nothing else.
+    let sideways = Loads {
+        nodal: vec![],
+        ground: Some(GroundMotion {
+            acceleration: Vector3::new(0.0, 3.0, 0.0),
+            time: table,
+        }),
+    };
+    let (log, summary) = run(&s, &transient(dt, steps, sideways, Initial::default()));
+    for f in &log.frames {
+        assert_eq!(f.2, s.model.positions(), "t = {}", f.1);
+        assert!(f.3.iter().all(|v| *v == Vector3::zeros()), "t = {}", f.1);
+    }
+    assert_eq!((summary.max_kinetic, summary.max_energy), (0.0, 0.0));
+}
+
+/// The same on a form-found 3-strut prism through the config: ground motion in x and z
+/// (a table) against per-node loads −m_n a_g on every node, each node with its own lumped
+/// mass. Every free DOF gets the same force either way, so the two runs agree bit for
+/// bit; both are nonlinear (large rotations are not involved, but K_T changes).
+#[test]
+fn ground_motion_on_a_prism_equals_nodal_inertia_loads() {
+    let text = include_str!("../configs/prism3.yaml");
+    let mut cfg = parse_case(text, "configs/prism3.yaml").unwrap();
+    cfg.eigen = None;
+    let fv = cfg.free_vibration.as_mut().unwrap();
+    (fv.load, fv.duration, fv.dt, fv.damped) = (None, 0.1, 0.0005, false);
+    let time = TimeFunctionSpec::Table {
+        file: None,
+        points: vec![[0.0, 0.0], [0.02, 1.0], [0.04, -1.0], [0.06, 0.0]],
+    };
+    let ag = [2.0, 0.0, -1.0];
+    fv.ground_motion = Some(tsim::config::GroundMotionSpec {
+        acceleration: ag,
+        time: time.clone(),
+    });
+    let mut by_ground = Log::default();
+    run_case(&cfg, &mut by_ground).unwrap_or_else(|e| panic!("{e}"));
+    let model = cfg.model.build().unwrap();
+    let fv = cfg.free_vibration.as_mut().unwrap();
+    fv.ground_motion = None;
+    fv.loads = model
+        .nodes
+        .iter()
+        .zip(&by_ground.masses)
+        .map(|(n, &m)| NodalForceSpec {
+            nodes: vec![n.id.clone()],
+            groups: vec![],
+            force: ag.map(|a| -m * a),
+            time: time.clone(),
+        })
+        .collect();
+    let mut by_force = Log::default();
+    run_case(&cfg, &mut by_force).unwrap_or_else(|e| panic!("{e}"));
+    let (g, f): (Vec<_>, Vec<_>) = (
+        by_ground.stage(Stage::FreeVibration).collect(),
+        by_force.stage(Stage::FreeVibration).collect(),
+    );
+    assert_eq!(g.len(), 201);
+    let moved = g.iter().map(|a| (a.2[5] - g[0].2[5]).norm()).fold(0.0, f64::max);
+    eprintln!("prism under ground motion: top node moved up to {moved:.3e} m");
+    assert!(moved > 1e-6, "the ground motion moved the prism");
+    for (a, b) in g.iter().zip(&f) {
+        assert_eq!((a.1, &a.2, &a.3), (b.1, &b.2, &b.3), "t = {}", a.1);
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// (d) Initial displacement: free vibration at the eigen frequency
+// ---------------------------------------------------------------------------------------
+
+/// A prestressed star: three linear cables (strain 1 %, tension N) from fixed anchors at
+/// distance L along −x, +x and −z to a middle node held in z, the cables' mass lumped there
+/// (m = 3 · ½ ρ A l0). Its y direction is stiffened by geometry only: ω² = 3N/(mL). (Three
+/// anchors, not the string's two, because a model on one line leaves the rotation about
+/// it unsupported.) The middle node is displaced in y by `initial.displacement` (1e-4 L)
+/// and released: the period of the free vibration (mean over 10 periods, from linearly
+/// interpolated zero crossings) against 2π/ω of the eigen stage, after Newmark's period
+/// elongation T̄/T = (ωΔt/2)/atan(ωΔt/2) (ωΔt = 2π/200: 8e-5) is taken out.
+///
+/// Tolerance 1e-6 relative: what remains is the amplitude nonlinearity, the tension's
+/// rise (EA/N)(a/L)²/2 ≈ 100 · 1e-8/2 = 5e-7 at the peak (less on average), the
+/// interpolation of a crossing (O((ωΔt)³) with a sine's zero curvature there: ~1e-7 of a
+/// step, 1e-9 of the period), and the eigenvalue's own ~1e-14 (tests/pipeline.rs
+/// `string_with_mid_mass_lateral_frequency`).
+#[test]
+fn initial_displacement_vibrates_at_the_eigen_frequency() {
+    let (half, l0, ea, area, density): (f64, f64, f64, f64, f64) = (1.5, 1.485, 1000.0, 1e-4, 1000.0);
+    let m = 1.5 * density * area * l0;
+    let n = ea * (half - l0) / l0;
+    let w2 = 3.0 * n / (m * half);
+    let w = w2.sqrt();
+    let dt = 2.0 * PI / w / 200.0;
+    let a = 1e-4 * half;
+    let text = format!(
+        "name: star\n{STAR}eigen: {{}}\nfree_vibration:\n  dt: {dt}\n  duration: {}\n  initial:\n    displacement:\n      - {{ nodes: [mid], value: [0, {a}, 0] }}\n",
+        10.5 * 2.0 * PI / w
+    );
+    let cfg = parse_case(&text, "star.yaml").unwrap_or_else(|e| panic!("{e}"));
+    let mut log = Log::default();
+    let summary = run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("{e}"));
+    let eigen = summary.eigen.expect("eigen ran");
+    let w_eigen = eigen.omega2[0].sqrt();
+    assert!(
+        (eigen.omega2[0] / w2 - 1.0).abs() < 1e-9,
+        "eigen ω² {} vs 3N/(mL) {w2}",
+        eigen.omega2[0]
+    );
+    // Zero crossings of y(t) of the middle node, interpolated.
+    let y: Vec<(f64, f64)> = log.stage(Stage::FreeVibration).map(|f| (f.1, f.2[MID].y)).collect();
+    assert!((y[0].1 - a).abs() < 1e-15, "started displaced: {}", y[0].1);
+    let crossings: Vec<f64> = y
+        .windows(2)
+        .filter(|p| p[0].1 > 0.0 && p[1].1 <= 0.0)
+        .map(|p| p[0].0 + (p[1].0 - p[0].0) * p[0].1 / (p[0].1 - p[1].1))
+        .collect();
+    assert!(crossings.len() >= 10, "{} downward crossings", crossings.len());
+    let measured = (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64;
+    let elongation = (w_eigen * dt / 2.0) / (w_eigen * dt / 2.0).atan();
+    let expected = 2.0 * PI / w_eigen * elongation;
+    eprintln!(
+        "star: period {measured:.9} s vs eigen {:.9} s × elongation {elongation:.7}: {:+.2e} relative",
+        2.0 * PI / w_eigen,
+        measured / expected - 1.0
+    );
+    assert!((measured / expected - 1.0).abs() < 1e-6);
+}
+
+// ---------------------------------------------------------------------------------------
+// (e) Gravity in a transient: at rest at the loaded equilibrium
+// ---------------------------------------------------------------------------------------
+
+/// Gravity along the oscillator (g = −9.81 m/s² in x): the weight m g is a load in the
+/// transient. Started at the loaded equilibrium x = m g/k (an initial displacement), it
+/// stays there: |x − m g/k| and |v| stay at round-off (1e-12 of the static deflection:
+/// the start's residual k x − m g is ~ε k x, and a step adds ~ε x), over 1000 steps with
+/// no drift. Started at the unloaded position, it swings to 2 m g/k: gravity does act.
+#[test]
+fn gravity_at_the_loaded_equilibrium_stays_at_rest() {
+    let w = (K / M).sqrt();
+    let dt = 2.0 * PI / w / 200.0;
+    let mut s = chain(K, &[M]);
+    s.gravity = Vector3::new(-9.81, 0.0, 0.0);
+    let sag = M * s.gravity.x / K;
+    let at_sag = Initial {
+        displacement: vec![(1, Vector3::new(sag, 0.0, 0.0))],
+        ..Default::default()
+    };
+    let (log, summary) = run(&s, &transient(dt, 1000, Loads::default(), at_sag));
+    let x = trajectory(&log);
+    let drift = x.iter().map(|p| (p.0 - sag).abs()).fold(0.0, f64::max);
+    let speed = x.iter().map(|p| p.1.abs()).fold(0.0, f64::max);
+    eprintln!(
+        "gravity at rest: drift {:.2e}, speed {:.2e} (of m g/k, ω m g/k)",
+        drift / sag.abs(),
+        speed / (w * sag.abs())
+    );
+    assert!(drift < 1e-12 * sag.abs() && speed < 1e-12 * w * sag.abs());
+    assert!(summary.max_mechanical_rise <= 1e-12 * summary.max_energy, "{summary:?}");
+    let (log, _) = run(&s, &transient(dt, 200, Loads::default(), Initial::default()));
+    let lowest = trajectory(&log).iter().map(|p| p.0).fold(0.0, f64::min);
+    assert!((lowest / sag - 2.0).abs() < 1e-3, "swing {:.6} m g/k", lowest / sag);
+}
+
+// ---------------------------------------------------------------------------------------
+// (g) The energy ledger with every kind of load
+// ---------------------------------------------------------------------------------------
+
+/// Two masses in a linear chain, Rayleigh damped (α M and the objective β term), under
+/// gravity, a harmonic force on the outer mass, a ramped force on the inner one and a
+/// ground acceleration table, started with an initial velocity and zero acceleration:
+/// KE + SE + D − W − E0 stays at round-off. The system is linear, so the trapezoidal
+/// work the ledger counts is the scheme's exact energy identity; what is left is
+/// round-off: each step's increment Δu is a difference of coordinates of ~1 m (ε·1 m
+/// off), times forces of ~30 N, accumulated over 2000 steps: up to ~1.3e-11 J if it adds
+/// up linearly, 5e-12 of the 2.7 J energy scale (measured: 3e-12). 1e-10 leaves that
+/// margin and is still 1e-8 of the loads' work W (2.6 J): a load left out of the ledger,
+/// or counted at the wrong time, shows at the size of W.
+#[test]
+fn energy_balance_closes_with_time_varying_and_ground_loads() {
+    let mut s = chain(K, &[M, 0.5 * M]);
+    s.gravity = Vector3::new(-9.81, 0.0, 0.0);
+    s.damping = Rayleigh { alpha: 0.5, beta: 0.002 };
+    let loads = Loads {
+        nodal: vec![
+            NodalLoad {
+                nodes: vec![2],
+                force: Vector3::new(5.0, 0.0, 0.0),
+                time: TimeFunction::Harmonic {
+                    frequency: 2.0,
+                    phase: 0.3,
+                    duration: Some(0.6),
+                },
+            },
+            NodalLoad {
+                nodes: vec![1],
+                force: Vector3::new(-3.0, 0.0, 0.0),
+                time: TimeFunction::Ramp { duration: 0.4 },
+            },
+        ],
+        ground: Some(GroundMotion {
+            acceleration: Vector3::new(4.0, 0.0, 0.0),
+            time: TimeFunction::Table(vec![[0.0, 0.0], [0.1, 1.0], [0.3, -1.0], [0.5, 0.0]]),
+        }),
+    };
+    let initial = Initial {
+        velocity: vec![(2, Vector3::new(0.2, 0.0, 0.0))],
+        zero_acceleration: true,
+        ..Default::default()
+    };
+    let mut stage = transient(0.0005, 2000, loads, initial);
+    stage.damped = true;
+    let (log, summary) = run(&s, &stage);
+    let last = log.frames.last().unwrap().4;
+    eprintln!(
+        "energy ledger: max |KE + SE + D − W − E0| {:.2e} J of max energy {:.3e} J; W = {:.4e} J, D = {:.4e} J",
+        summary.max_balance_error, summary.max_energy, last.external, last.damping
+    );
+    assert!(last.external.abs() > 1e-3 * summary.max_energy && last.damping > 1e-3 * summary.max_energy);
+    assert!(summary.max_balance_error < 1e-10 * summary.max_energy, "{summary:?}");
+    assert!(log.frames[0].3[2].x == 0.2, "the initial velocity is set");
+}
+
+// ---------------------------------------------------------------------------------------
+// (f) CSV tables and the errors of loads, from files
+// ---------------------------------------------------------------------------------------
+
+/// A fresh directory under the system's temp dir for one test.
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("tsim-loads-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The star of (d): 13 lines, from `model:` to `substitution:`.
+const STAR: &str = "model:
+  nodes:
+    - { id: a, xyz: [-1.5, 0, 0], fix: [x, y, z] }
+    - { id: b, xyz: [1.5, 0, 0], fix: [x, y, z] }
+    - { id: c, xyz: [0, 0, -1.5], fix: [x, y, z] }
+    - { id: mid, xyz: [0, 0, 0], fix: [z] }
+  members:
+    - { id: left, nodes: [a, mid], kind: cable, rest_length: 1.485 }
+    - { id: right, nodes: [mid, b], kind: cable, rest_length: 1.485 }
+    - { id: down, nodes: [c, mid], kind: cable, rest_length: 1.485 }
+materials:
+  wire: { law: { elastic: { youngs_modulus: 1.0e7, tension_only: false } }, area: 1.0e-4, density: 1000.0 }
+substitution: { strut: wire, cable: wire }
+";
+
+/// Index of the star's middle node.
+const MID: usize = 3;
+
+/// The star with ground motion along y from `table` (a YAML flow value) on line 20.
+fn star_config(table: &str) -> String {
+    format!("name: star\n{STAR}free_vibration:\n  dt: 0.001\n  duration: 0.1\n  ground_motion:\n    acceleration: [0, 1.0, 0]\n    time: {table}\n")
+}
+
+fn load_errors(path: &std::path::Path) -> String {
+    match tsim::run::load(path) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("{} loaded without error", path.display()),
+    }
+}
+
+/// A table file relative to the config is read into `points` when the config loads; the
+/// resolved config (case.yaml) holds the values and no file name; and the run is the one
+/// with the same points written inline, bit for bit.
+#[test]
+fn csv_table_is_read_into_the_resolved_config() {
+    let dir = scratch("csv-ok");
+    let fixture = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/ground_pulse.csv");
+    std::fs::copy(fixture, dir.join("pulse.csv")).unwrap();
+    let path = dir.join("case.yaml");
+    std::fs::write(&path, star_config("{ table: { file: pulse.csv } }")).unwrap();
+    let (_, cases) = tsim::run::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let yaml = &cases[0].yaml;
+    assert!(!yaml.contains("pulse.csv"), "{yaml}");
+    let spec = cases[0].config.free_vibration.as_ref().unwrap().ground_motion.as_ref().unwrap();
+    let TimeFunctionSpec::Table { file: None, points } = &spec.time else {
+        panic!("{:?}", spec.time)
+    };
+    let rows: Vec<[f64; 2]> = std::fs::read_to_string(fixture)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            let mut c = l.split(',').map(|c| c.trim().parse::<f64>().unwrap());
+            [c.next().unwrap(), c.next().unwrap()]
+        })
+        .collect();
+    assert_eq!(points, &rows);
+    let inline = format!("{{ table: {{ points: {rows:?} }} }}");
+    let inline_cfg: CaseConfig = parse_case(&star_config(&inline), "inline.yaml").unwrap();
+    let (mut a, mut b) = (Log::default(), Log::default());
+    run_case(&cases[0].config, &mut a).unwrap_or_else(|e| panic!("{e}"));
+    run_case(&inline_cfg, &mut b).unwrap_or_else(|e| panic!("{e}"));
+    let ys: Vec<f64> = a.stage(Stage::FreeVibration).map(|f| f.2[MID].y).collect();
+    assert!(ys.iter().any(|y| y.abs() > 1e-6), "the ground motion moved the star");
+    assert_eq!(ys, b.stage(Stage::FreeVibration).map(|f| f.2[MID].y).collect::<Vec<_>>());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Every CSV problem is reported at its file and line, with what to do; a missing file
+/// names the resolved path at the config's `file:` line.
+#[test]
+fn csv_table_errors_name_file_and_line() {
+    let dir = scratch("csv-errors");
+    let config = |name: &str, csv: Option<&str>| {
+        if let Some(csv) = csv {
+            std::fs::write(dir.join(format!("{name}.csv")), csv).unwrap();
+        }
+        let path = dir.join(format!("{name}.yaml"));
+        std::fs::write(&path, star_config(&format!("{{ table: {{ file: {name}.csv }} }}"))).unwrap();
+        (path, dir.join(format!("{name}.csv")).display().to_string())
+    };
+    // The `file:` key is on line 20 of `star_config`.
+    let (path, csv) = config("missing", None);
+    let e = load_errors(&path);
+    eprintln!("{e}");
+    assert!(
+        e.contains(&format!("{}:20:", path.display())) && e.contains(&format!("cannot read `{csv}`")),
+        "{e}"
+    );
+    let cases = [
+        ("badrow", "t,a\n0,0\n0.1;1\n0.2,0\n", 3, "is not two numbers"),
+        ("nan", "0,0\n0.1,NaN\n0.2,0\n", 2, "is not finite"),
+        ("inf", "0,0\n0.1,1\ninf,0\n", 3, "is not finite"),
+        ("unsorted", "0,0\n0.2,1\n0.1,0\n", 3, "time 0.1 is not after 0.2 at line 2"),
+        ("duplicate", "0,0\n0.1,1\n0.1,0\n", 3, "time 0.1 is not after 0.1 at line 2"),
+    ];
+    for (name, text, line, message) in cases {
+        let (path, csv) = config(name, Some(text));
+        let e = load_errors(&path);
+        eprintln!("{e}");
+        assert!(e.contains(&format!("{csv}:{line}: ")) && e.contains(message), "{name}: {e}");
+    }
+    let (path, csv) = config("short", Some("time,accel\n0,1\n"));
+    let e = load_errors(&path);
+    eprintln!("{e}");
+    assert!(e.contains(&csv) && e.contains("at least 2"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Bad loads, ground motion and initial conditions are value errors at their lines: an
+/// unknown node, an unknown group, an empty node set, a non-positive duration, inline
+/// points out of order, ground motion with no support, an initial velocity on a fixed
+/// direction (node and direction named), `from: folded` in free vibration.
+#[test]
+fn load_errors_name_the_field_and_line() {
+    let text = format!(
+        "name: bad
+{STAR}free_vibration:
+  duration: 0.1
+  loads:
+    - {{ nodes: [mid], force: [0, 1, 0] }}
+    - {{ nodes: [nowhere], force: [0, 1, 0] }}
+    - {{ groups: [top], force: [0, 1, 0], time: {{ ramp: {{ duration: 0 }} }} }}
+    - {{ force: [0, 1, 0] }}
+    - nodes: [mid]
+      force: [1, 0, 0]
+      time: {{ table: {{ points: [[0, 0], [0.2, 1], [0.1, 0]] }} }}
+  initial:
+    from: folded
+    velocity:
+      - {{ nodes: [mid], value: [0, 0.1, 0.5] }}
+"
+    );
+    let e = match tsim::run::expand(&text, "bad.yaml") {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("accepted"),
+    };
+    eprintln!("{e}");
+    let expect = [
+        (19, "free_vibration.loads[1].nodes", "unknown node `nowhere`"),
+        (20, "free_vibration.loads[2].groups", "unknown node group `top`"),
+        (20, "free_vibration.loads[2].time.ramp.duration", "must be a finite number > 0"),
+        (21, "free_vibration.loads[3]", "names no node"),
+        (
+            24,
+            "free_vibration.loads[4].time.table.points[2]",
+            "time 0.1 is not after points[1]'s 0.2",
+        ),
+        (26, "free_vibration.initial.from", "folding runs after free vibration"),
+        (28, "free_vibration.initial.velocity[0].value", "node `mid` is supported in z"),
+    ];
+    for (line, field, message) in expect {
+        let at = format!("bad.yaml:{line}: `{field}`: ");
+        assert!(
+            e.lines().any(|l| l.starts_with(&at) && l.contains(message)),
+            "no `{at}…{message}` in\n{e}"
+        );
+    }
+    // Ground motion needs a support to move.
+    let free = "name: free
+model:
+  nodes:
+    - { id: a, xyz: [0, 0, 0] }
+    - { id: b, xyz: [1, 0, 0] }
+  members:
+    - { id: ab, nodes: [a, b], kind: strut, rest_length: 1.0 }
+substitution: { strut: aluminium, cable: steel_cable }
+free_vibration:
+  duration: 0.1
+  ground_motion: { acceleration: [1, 0, 0], time: constant }
+";
+    let e = match tsim::run::expand(free, "free.yaml") {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("accepted"),
+    };
+    eprintln!("{e}");
+    assert!(
+        e.lines()
+            .any(|l| l.starts_with("free.yaml:11: `free_vibration.ground_motion`: ") && l.contains("no support")),
+        "{e}"
+    );
+}
+
+/// `initial.from: previous` starts deployment at the end of free vibration (velocities
+/// too), with no folding between; the default is the equilibrium for free vibration.
+#[test]
+fn previous_starts_where_the_last_stage_ended() {
+    let text = star_config("{ harmonic: { frequency: 5.0 } }")
+        + "deployment:
+  dt: 0.001
+  duration: 0.01
+  initial: { from: previous }
+";
+    let cfg = parse_case(&text, "previous.yaml").unwrap_or_else(|e| panic!("{e}"));
+    let mut log = Log::default();
+    run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("{e}"));
+    let end = log.stage(Stage::FreeVibration).last().unwrap();
+    let start = log.stage(Stage::Deployment).next().unwrap();
+    assert!(end.3[MID].norm() > 0.0, "free vibration ended moving");
+    assert_eq!((&end.2, &end.3), (&start.2, &start.3));
+}
