@@ -250,3 +250,51 @@ fn folding_under_gravity_tracks_the_pendulum_frequency() {
         assert_eq!(m.lowest_at, "node `end` direction x");
     }
 }
+
+/// The prism of configs/examples/prism_selfweight.yaml with `replace` applied to its text:
+/// the expansion error (as `tsim check` prints it).
+fn example_error(replace: &[(&str, &str)]) -> String {
+    let mut text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/examples/prism_selfweight.yaml")).unwrap();
+    for (from, to) in replace {
+        assert!(text.contains(from), "the example no longer has `{from}`");
+        text = text.replacen(from, to, 1);
+    }
+    let e = match tsim::run::expand(&text, "prism.yaml", false) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("accepted: {replace:?}"),
+    };
+    for line in e.lines() {
+        let at = line.strip_prefix("prism.yaml:").and_then(|r| r.split(':').next());
+        assert!(at.is_some_and(|n| n.parse::<usize>().is_ok()), "no line in `{line}`");
+    }
+    e
+}
+
+/// Bad input of the new keys is refused at its line, naming the fix.
+#[test]
+fn loading_errors_name_the_line_and_the_fix() {
+    // Gravity on a model without mass: both materials massless, no point mass.
+    let e = example_error(&[
+        ("  - { groups: [top], mass: 20.0 }   # kg on each node of the group\n", ""),
+        ("point_masses:\n", ""),
+        ("density: 7850.0\n    source: \"S355", "density: 0.0\n    source: \"S355"),
+        ("density: 7850.0\n    source: \"steel tension", "density: 0.0\n    source: \"steel tension"),
+    ]);
+    assert!(e.contains("`gravity`: the model has no mass") && e.contains("prism.yaml:"), "{e}");
+    // A material assigned to no member: an unknown member group and an unknown member.
+    let e = example_error(&[(
+        "  cable: steel_rod    # every member of kind cable\n",
+        "  cable: steel_rod\n  assign:\n    - { groups: [rings], material: steel_tube }\n    - { members: [x9], material: steel_tube }\n",
+    )]);
+    assert!(e.contains("`substitution.assign[0]`: unknown member group `rings`; the model's member groups: ring_bottom, ring_top, strut, vertical"), "{e}");
+    assert!(e.contains("`substitution.assign[1]`: unknown member `x9`"), "{e}");
+    // A point mass on an unknown node, and a static load on an unknown group.
+    let e = example_error(&[("{ groups: [top], mass: 20.0 }", "{ nodes: [hub], mass: 20.0 }")]);
+    assert!(e.contains("`point_masses[0]`: unknown node `hub`"), "{e}");
+    // Displacement control of a supported direction.
+    let e = example_error(&[(
+        "static:\n  steps: 4\n",
+        "static:\n  steps: 4\n  loads: [{ nodes: [t0], force: [0, 0, -1] }]\n  control: { node: b0, axis: z, displacement: -0.1 }\n",
+    )]);
+    assert!(e.contains("`static.control.axis`: node `b0` is supported in z: control a free direction"), "{e}");
+}
