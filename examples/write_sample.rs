@@ -61,6 +61,7 @@ fn main() -> Result<()> {
             masses: &masses,
             mass_reading: "physical",
             constraints: &[],
+            path_modes: 0,
         })
     })?;
     each(&mut |r| {
@@ -125,6 +126,7 @@ fn main() -> Result<()> {
                 applied: &applied,
                 reactions: &reactions,
                 equilibrium_error: 0.0,
+                modes: None,
             };
             each(&mut |r| r.frame(&frame))?;
         }

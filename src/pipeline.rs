@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::model::{shape_error, Model};
 use crate::record::{Constraints, FormFindRecord, ModelRecord, Recorder, Stage};
 use crate::stage::eigen::EigenSummary;
-use crate::stage::fold::FoldSummary;
+use crate::stage::fold::{FoldSummary, Folding};
 use crate::stage::formfind::{FormFindSummary, SelfEquilibrium};
 use crate::stage::static_load::StaticSummary;
 use crate::stage::substitute::{balanced_forces, SubstitutionSummary};
@@ -56,9 +56,7 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     summary.substitution = SubstitutionSummary::new(&structure, &unloaded)?;
     summary.substitution.require_stable(cfg.substitution.allow_unstable)?;
     let folding = cfg.folding(&model)?;
-    // Folding's prescribed directions are reactions too; the outputs fix their layout now.
-    let constraints: Vec<(Stage, Constraints)> = folding.iter().map(|f| (Stage::Folding, f.constraints(&structure.model))).collect();
-    record_structure(recorder, &structure, &unloaded, &found, cfg.masses.as_str(), &constraints)?;
+    record_structure(recorder, &structure, &unloaded, &found, cfg.masses.as_str(), folding.as_ref())?;
     match found.stage {
         Stage::FormFinding => summary.formfinding = Some(found.summary),
         _ => summary.equilibrium = Some(found.summary),
@@ -144,21 +142,24 @@ fn shape(cfg: &CaseConfig, model: &Model, settings: &Settings, recorder: &mut dy
 }
 
 /// The model record (real rest lengths and masses), then form-finding's (or the given
-/// model's equilibrium).
+/// model's equilibrium). Folding's prescribed directions (reactions too) and its modes
+/// per step are declared here: the outputs fix their layout before streaming starts.
 fn record_structure(
     recorder: &mut dyn Recorder,
     structure: &Structure,
     shape: &State,
     found: &FormFound,
     mass_reading: &str,
-    constraints: &[(Stage, Constraints)],
+    folding: Option<&Folding>,
 ) -> Result<()> {
+    let constraints: Vec<(Stage, Constraints)> = folding.iter().map(|f| (Stage::Folding, f.constraints(&structure.model))).collect();
     let model = ModelRecord {
         model: &structure.model,
         rest_lengths: &structure.elements.rest,
         masses: &structure.masses,
         mass_reading,
-        constraints,
+        constraints: &constraints,
+        path_modes: folding.map_or(0, |f| f.modes),
     };
     recorder.model(&model).map_err(|source| Error::Record { stage: "model", source })?;
     let record = FormFindRecord {

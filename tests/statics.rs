@@ -16,11 +16,16 @@ use tsim::tsm::Elements;
 #[derive(Default)]
 struct Path {
     steps: Vec<(f64, Vec<Vector3<f64>>)>,
+    /// The lowest ω² and mode of each frame that has them.
+    modes: Vec<(f64, Vec<Vector3<f64>>)>,
 }
 
 impl Recorder for Path {
     fn frame(&mut self, frame: &Frame) -> RecordResult {
         self.steps.push((frame.time, frame.positions.to_vec()));
+        if let Some(m) = frame.modes {
+            self.modes.push((m.omega2[0], m.lowest.to_vec()));
+        }
         Ok(())
     }
 }
@@ -236,7 +241,7 @@ fn folding_under_gravity_tracks_the_pendulum_frequency() {
         "{:?}",
         end.positions[1]
     );
-    assert_eq!(summary.modes.len(), 4);
+    assert_eq!(summary.modes.len(), 5, "the start and every step");
     for m in &summary.modes {
         // ω² = g/l from the geometric stiffness; the dense eigensolver resolves it to
         // ε times the axial ω² (EA/(l0 M) ~ 1250 rad²/s², ~300 g/l): 1e-9 is far above.
@@ -248,6 +253,14 @@ fn folding_under_gravity_tracks_the_pendulum_frequency() {
             g / l
         );
         assert_eq!(m.lowest_at, "node `end` direction x");
+    }
+    // The frames carry the same: ω² and the mass-normalised lowest mode, a sideways swing
+    // of the mass, φ_x = ±1/√M (as exact as ω² above).
+    assert_eq!(path.modes.len(), 5);
+    for (omega2, shape) in &path.modes {
+        assert!((omega2 - g / l).abs() <= 1e-9 * g / l);
+        assert!((shape[1].x.abs() - 1.0 / mass.sqrt()).abs() <= 1e-9 / mass.sqrt(), "{:?}", shape[1]);
+        assert!(shape[0] == Vector3::zeros() && shape[1].y == 0.0, "the support and y do not move");
     }
 }
 
@@ -278,7 +291,10 @@ fn loading_errors_name_the_line_and_the_fix() {
         ("  - { groups: [top], mass: 20.0 }   # kg on each node of the group\n", ""),
         ("point_masses:\n", ""),
         ("density: 7850.0\n    source: \"S355", "density: 0.0\n    source: \"S355"),
-        ("density: 7850.0\n    source: \"steel tension", "density: 0.0\n    source: \"steel tension"),
+        (
+            "density: 7850.0\n    source: \"steel tension",
+            "density: 0.0\n    source: \"steel tension",
+        ),
     ]);
     assert!(e.contains("`gravity`: the model has no mass") && e.contains("prism.yaml:"), "{e}");
     // A material assigned to no member: an unknown member group and an unknown member.
@@ -286,7 +302,12 @@ fn loading_errors_name_the_line_and_the_fix() {
         "  cable: steel_rod    # every member of kind cable\n",
         "  cable: steel_rod\n  assign:\n    - { groups: [rings], material: steel_tube }\n    - { members: [x9], material: steel_tube }\n",
     )]);
-    assert!(e.contains("`substitution.assign[0]`: unknown member group `rings`; the model's member groups: ring_bottom, ring_top, strut, vertical"), "{e}");
+    assert!(
+        e.contains(
+            "`substitution.assign[0]`: unknown member group `rings`; the model's member groups: ring_bottom, ring_top, strut, vertical"
+        ),
+        "{e}"
+    );
     assert!(e.contains("`substitution.assign[1]`: unknown member `x9`"), "{e}");
     // A point mass on an unknown node, and a static load on an unknown group.
     let e = example_error(&[("{ groups: [top], mass: 20.0 }", "{ nodes: [hub], mass: 20.0 }")]);
@@ -296,5 +317,8 @@ fn loading_errors_name_the_line_and_the_fix() {
         "static:\n  steps: 4\n",
         "static:\n  steps: 4\n  loads: [{ nodes: [t0], force: [0, 0, -1] }]\n  control: { node: b0, axis: z, displacement: -0.1 }\n",
     )]);
-    assert!(e.contains("`static.control.axis`: node `b0` is supported in z: control a free direction"), "{e}");
+    assert!(
+        e.contains("`static.control.axis`: node `b0` is supported in z: control a free direction"),
+        "{e}"
+    );
 }

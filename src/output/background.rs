@@ -17,7 +17,9 @@
 //! recorder back and drops it, which records "failed: recorder dropped before finish" as a
 //! direct recorder would.
 
-use crate::record::{Constraints, EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
+use crate::record::{
+    Constraints, EigenRecord, Energy, FormFindRecord, Frame, FrameModes, ModelRecord, Outcome, RecordResult, Recorder, Stage,
+};
 use nalgebra::Vector3;
 use std::sync::mpsc::{channel, sync_channel, Receiver, Sender, SyncSender};
 use std::thread::JoinHandle;
@@ -268,6 +270,8 @@ pub(super) struct OwnedFrame {
     applied: Vec<Vector3<f64>>,
     reactions: Vec<f64>,
     equilibrium_error: f64,
+    /// (ω², lowest mode) when the frame has modes.
+    modes: Option<(Vec<f64>, Vec<Vector3<f64>>)>,
 }
 
 impl OwnedFrame {
@@ -286,6 +290,14 @@ impl OwnedFrame {
         refill(&mut self.applied, f.applied);
         refill(&mut self.reactions, f.reactions);
         self.equilibrium_error = f.equilibrium_error;
+        match f.modes {
+            Some(m) => {
+                let (omega2, lowest) = self.modes.get_or_insert_with(Default::default);
+                refill(omega2, m.omega2);
+                refill(lowest, m.lowest);
+            }
+            None => self.modes = None,
+        }
     }
 
     fn from(f: &Frame) -> Self {
@@ -312,6 +324,7 @@ impl OwnedFrame {
             applied: &self.applied,
             reactions: &self.reactions,
             equilibrium_error: self.equilibrium_error,
+            modes: self.modes.as_ref().map(|(omega2, lowest)| FrameModes { omega2, lowest }),
         }
     }
 }
@@ -436,6 +449,7 @@ mod tests {
             masses: &[1.0; 6],
             mass_reading: "physical",
             constraints: &[],
+            path_modes: 0,
         })
         .unwrap();
         bg.begin_stage(Stage::FreeVibration, &Constraints::new(&model, &[])).unwrap();

@@ -323,6 +323,8 @@ struct Series {
     /// The directions of the `support` dimension (the reactions' order).
     constraints: Constraints,
     folding: bool,
+    /// Lowest modes recorded per step (folding with `folding.eigen`; 0: none).
+    modes: usize,
     written: usize,
     buffered: usize,
     chunk: usize,
@@ -443,11 +445,35 @@ impl Series {
                 (false, false) => {}
             }
         }
+        let modes = if stage == Stage::Folding { record.path_modes } else { 0 };
+        if modes > 0 {
+            let numbers: Vec<i64> = (1..=modes as i64).collect();
+            g.coord("mode", &numbers, "1", "mode number, 1 = lowest")?;
+            let omega2 = g.streamed(
+                "mode_omega2",
+                &["mode"],
+                chunk,
+                "rad2 s-2",
+                "lowest eigenvalues ω² of K_T φ = ω² M φ, prescribed directions held",
+            )?;
+            let lowest = g.streamed(
+                "lowest_mode",
+                &["node", "xyz"],
+                chunk,
+                "m kg-1/2",
+                "mass-normalised lowest mode (zero at constrained directions)",
+            )?;
+            for ds in [&omega2, &lowest] {
+                str_attr(ds, "coordinates", "fraction")?;
+            }
+            columns.extend([omega2, lowest]);
+        }
         let columns = columns.into_iter().map(|ds| (ds, Vec::new())).collect();
         Ok(Series {
             columns,
             constraints,
             folding,
+            modes,
             written: 0,
             buffered: 0,
             chunk,
@@ -491,6 +517,14 @@ impl Series {
         next().extend(f.applied.iter().flat_map(|p| p.iter().copied()));
         next().extend_from_slice(f.reactions);
         next().push(f.equilibrium_error);
+        if self.modes > 0 {
+            let m = f
+                .modes
+                .filter(|m| m.omega2.len() == self.modes && m.lowest.len() == n)
+                .ok_or_else(|| format!("HDF5: frame {} lacks its {} lowest modes", f.step, self.modes))?;
+            next().extend_from_slice(m.omega2);
+            next().extend(m.lowest.iter().flat_map(|p| p.iter().copied()));
+        }
         self.buffered += 1;
         let full = self.buffered == self.chunk;
         if full {
@@ -699,6 +733,7 @@ pub(super) mod tests {
             masses: &vec![2.0; n],
             mass_reading: "paper",
             constraints: &[(Stage::Folding, folding.clone())],
+            path_modes: 0,
         })?;
         let forces: Vec<f64> = model
             .members
@@ -751,6 +786,7 @@ pub(super) mod tests {
                     applied: &vec![Vector3::new(0.0, 0.0, -s); n],
                     reactions: &(0..constraints.len()).map(|k| k as f64 + s).collect::<Vec<_>>(),
                     equilibrium_error: 1e-12 * s,
+                    modes: None,
                 })?;
             }
             rec.end_stage(stage)?;
@@ -930,6 +966,7 @@ pub(super) mod tests {
             masses: &[1.0; 6],
             mass_reading: "physical",
             constraints: &[],
+            path_modes: 0,
         })
         .unwrap();
         rec.begin_stage(Stage::FreeVibration, &Constraints::new(&model, &[])).unwrap();

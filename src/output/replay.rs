@@ -579,6 +579,7 @@ mod tests {
             masses: &[1.0; 6],
             mass_reading: "physical",
             constraints: &[],
+            path_modes: 0,
         })
         .unwrap();
         // Struts, then side cables (the second below the slack threshold), then rings.

@@ -120,6 +120,16 @@ pub struct Frame<'a> {
     /// |Σ reactions + Σ applied − Σ m a − Σ α m v| over the structure (a 3-vector's norm):
     /// the out-of-balance of the whole structure, zero to the solver's tolerance [N].
     pub equilibrium_error: f64,
+    /// The lowest modes at this step (folding with `folding.eigen`): ω² ascending
+    /// [rad²/s²] and the mass-normalised lowest mode over every node [m·kg^-1/2].
+    pub modes: Option<FrameModes<'a>>,
+}
+
+/// The lowest modes at one step of a stage.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameModes<'a> {
+    pub omega2: &'a [f64],
+    pub lowest: &'a [Vector3<f64>],
 }
 
 /// Static description of the model written once per case.
@@ -136,6 +146,8 @@ pub struct ModelRecord<'a> {
     /// the supports (folding); any other stage constrains the supports only. Known before
     /// the stages run, since file layouts are fixed once streaming starts.
     pub constraints: &'a [(Stage, Constraints)],
+    /// How many of the lowest modes folding records at every step (0: none).
+    pub path_modes: usize,
 }
 
 impl ModelRecord<'_> {

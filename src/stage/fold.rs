@@ -159,17 +159,25 @@ impl Fold<'_> {
 }
 
 /// The lowest `count` modes of the structure at the state of `asm` (its free DOFs).
-fn path_modes(structure: &Structure, asm: &Assembly, step: usize, count: usize) -> Result<PathModes> {
+/// Also returns the lowest mode over every node (zero at constrained directions), for the
+/// frame.
+fn path_modes(structure: &Structure, asm: &Assembly, step: usize, count: usize) -> Result<(PathModes, Vec<Vector3<f64>>)> {
     let dofs = asm.dofs;
     let m = modes(&tangent_matrix(asm), &structure.free_masses(dofs), dofs, &structure.model)?;
     let lowest = (0..dofs.len())
         .max_by(|&a, &b| m.shapes[(a, 0)].abs().total_cmp(&m.shapes[(b, 0)].abs()))
         .unwrap_or(0);
-    Ok(PathModes {
+    let mut shape = vec![Vector3::zeros(); structure.model.node_count()];
+    for i in 0..dofs.len() {
+        let (n, a) = dofs.owner(i);
+        shape[n][a] = m.shapes[(i, 0)];
+    }
+    let modes = PathModes {
         step,
         omega2: m.omega2.iter().take(count).copied().collect(),
         lowest_at: dofs.label(&structure.model, lowest),
-    })
+    };
+    Ok((modes, shape))
 }
 
 /// The free DOFs left when `prescribed` directions are imposed.
@@ -206,7 +214,16 @@ impl Analysis for Folding {
         let mut frames = FrameBuilder::new(structure, &dofs);
         let applied = structure.constant_load();
         frames.begin(recorder, Stage::Folding).map_err(record_error("folding"))?;
+        let mut summary = FoldSummary {
+            steps: self.steps,
+            ..Default::default()
+        };
         let mut record = |fold: &Fold, step: usize, recorder: &mut dyn Recorder| {
+            if self.modes > 0 {
+                let (modes, lowest) = path_modes(structure, &fold.problem.asm, step, self.modes)?;
+                frames.modes = Some((modes.omega2.clone(), lowest));
+                summary.modes.push(modes);
+            }
             let energy = Energy {
                 kinetic: 0.0,
                 strain: structure.strain_energy(&fold.problem.asm.x) - strain0,
@@ -218,16 +235,13 @@ impl Analysis for Folding {
                 .map_err(record_error("folding"))
         };
         record(&fold, 0, recorder)?;
-        let mut summary = FoldSummary {
-            steps: self.steps,
-            ..Default::default()
-        };
+        let (mut iterations_total, mut cuts_total) = (0, 0);
         for step in 1..=self.steps {
             let target = step as f64 / self.steps as f64;
             let (iterations, cut) = bisect(fold.fraction, target, self.max_cuts, &mut |a, b| fold.step(a, b), &|i, j| i + j)
                 .map_err(solve_error("folding", Some(step), None, structure, &dofs))?;
-            summary.newton_iterations += iterations;
-            summary.cut_steps += usize::from(cut);
+            iterations_total += iterations;
+            cuts_total += usize::from(cut);
             let energy = Energy {
                 external: fold.work,
                 ..Energy::default()
@@ -239,11 +253,9 @@ impl Analysis for Folding {
                 });
             }
             record(&fold, step, recorder)?;
-            if self.modes > 0 {
-                summary.modes.push(path_modes(structure, &fold.problem.asm, step, self.modes)?);
-            }
         }
         recorder.end_stage(Stage::Folding).map_err(record_error("folding"))?;
+        (summary.newton_iterations, summary.cut_steps) = (iterations_total, cuts_total);
         summary.equilibrium = frames.check.into();
         summary.height_ratio = height(&fold.problem.asm.x) / h0;
         Ok((State::at_rest(fold.problem.asm.x), summary))

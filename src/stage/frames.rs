@@ -1,5 +1,5 @@
 use crate::dynamics::{Energy, Newmark};
-use crate::record::{Constraints, Frame, RecordResult, Recorder, Stage};
+use crate::record::{Constraints, Frame, FrameModes, RecordResult, Recorder, Stage};
 use crate::structure::Structure;
 use crate::tsm::{Assembly, DofMap};
 use nalgebra::Vector3;
@@ -33,6 +33,9 @@ pub struct FrameBuilder {
     damping: Vec<f64>,
     /// Largest equilibrium error of the recorded steps, absolute [N] and relative.
     pub check: EquilibriumCheck,
+    /// The lowest modes (ω², lowest mode over every node) the next frames carry, when the
+    /// stage computes them (folding with `folding.eigen`).
+    pub modes: Option<(Vec<f64>, Vec<Vector3<f64>>)>,
 }
 
 /// The largest out-of-balance of the whole structure over a stage's recorded steps.
@@ -73,6 +76,7 @@ impl FrameBuilder {
             lengths: Vec::new(),
             damping: vec![0.0; 3 * nodes],
             check: EquilibriumCheck::default(),
+            modes: None,
         }
     }
 
@@ -160,6 +164,7 @@ impl FrameBuilder {
             applied,
             reactions: &self.reactions,
             equilibrium_error: error,
+            modes: self.modes.as_ref().map(|(omega2, lowest)| FrameModes { omega2, lowest }),
         })
     }
 }
