@@ -2,9 +2,11 @@
 //! contract; topic names and Foxglove schema names must not change).
 //!
 //! Topics (protobuf, zstd-compressed chunks):
-//! - `/tsim/scene` (`foxglove.SceneUpdate`): struts and cables as `LINE_LIST` primitives in
-//!   frame `world`, each member coloured by state: compression brown, tension red, slack grey
-//!   (the paper's colours).
+//! - `/tsim/scene` (`foxglove.SceneUpdate`): one entity `tensegrity` in frame `world`:
+//!   struts and cables as `LINE_LIST` primitives coloured by force (tension pale to full red,
+//!   compression pale to full blue, each scale topped by the step's largest force of its
+//!   sign; slack grey), a sphere at every free node, a cube at every supported one, and a
+//!   legend text with the scales' maxima.
 //! - `/tsim/energy` (`energy.Energy`): kinetic, strain, damping, external and total energy.
 //! - `/tsim/members` (`memberforces.MemberForces`): every member's id and force; in a Plot
 //!   panel, `/tsim/members.members[:]{id=="strut0_0"}.force`.
@@ -31,9 +33,11 @@
 //! Log times are strictly increasing on every topic: a computed time that does not exceed
 //! the previous one is moved 1 ns past it.
 
-use crate::model::MemberKind;
+use crate::model::{MemberKind, Model};
 use crate::record::{Energy, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
-use foxglove::messages::{line_primitive, Color, LinePrimitive, Point3, SceneEntity, SceneUpdate, Timestamp};
+use foxglove::messages::{
+    line_primitive, Color, LinePrimitive, Point3, Pose, Quaternion, SceneEntity, SceneUpdate, TextPrimitive, Timestamp,
+};
 use foxglove::Encode;
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
@@ -50,16 +54,25 @@ const STRUT_WIDTH: f64 = 6.0;
 const CABLE_WIDTH: f64 = 2.0;
 /// A member whose |force| is below this fraction of the step's largest |force| is slack.
 const SLACK_FRACTION: f64 = 1e-6;
-const BROWN: Color = Color {
-    r: 0.55,
-    g: 0.27,
-    b: 0.07,
-    a: 1.0,
-};
+/// Shades of each force scale: a member's shade is ⌈LEVELS · |N| / max |N|⌉, the maximum
+/// taken over the step's members of the same sign.
+const LEVELS: usize = 4;
+/// Node sphere diameter as a fraction of the median member length of the model.
+const NODE_SIZE: f64 = 0.05;
+/// Support cube edge as a multiple of the node sphere diameter.
+const SUPPORT_SIZE: f64 = 1.6;
+/// Legend font height [px].
+const LEGEND_FONT: f64 = 14.0;
 const RED: Color = Color {
     r: 0.85,
     g: 0.10,
     b: 0.10,
+    a: 1.0,
+};
+const BLUE: Color = Color {
+    r: 0.10,
+    g: 0.30,
+    b: 0.90,
     a: 1.0,
 };
 const GREY: Color = Color {
@@ -68,6 +81,65 @@ const GREY: Color = Color {
     b: 0.60,
     a: 1.0,
 };
+const GOLD: Color = Color {
+    r: 0.95,
+    g: 0.70,
+    b: 0.10,
+    a: 1.0,
+};
+const GREEN: Color = Color {
+    r: 0.10,
+    g: 0.65,
+    b: 0.25,
+    a: 1.0,
+};
+const PURPLE: Color = Color {
+    r: 0.60,
+    g: 0.30,
+    b: 0.80,
+    a: 1.0,
+};
+const WHITE: Color = Color {
+    r: 1.0,
+    g: 1.0,
+    b: 1.0,
+    a: 1.0,
+};
+
+/// Colour of a line state: 0 slack (grey), 1..=LEVELS tension (pale to full red),
+/// LEVELS+1..=2·LEVELS compression (pale to full blue).
+fn state_colour(state: usize) -> Color {
+    if state == 0 {
+        return GREY;
+    }
+    let (full, level) = if state <= LEVELS { (RED, state) } else { (BLUE, state - LEVELS) };
+    let s = level as f64 / LEVELS as f64;
+    let mix = |w: f64, c: f64| s * c + (1.0 - s) * w;
+    Color {
+        r: mix(WHITE.r, full.r),
+        g: mix(WHITE.g, full.g),
+        b: mix(WHITE.b, full.b),
+        a: 1.0,
+    }
+}
+
+/// The shade of |force| on a scale whose top is `max` (> 0): 1..=LEVELS.
+fn level(force: f64, max: f64) -> usize {
+    ((LEVELS as f64 * force.abs() / max).ceil() as usize).clamp(1, LEVELS)
+}
+
+/// `x` with three significant digits, plainly where that reads well.
+fn sig3(x: f64) -> String {
+    let a = x.abs();
+    if a == 0.0 || !a.is_finite() {
+        format!("{x}")
+    } else if (1e-2..1e5).contains(&a) {
+        let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.2e}")
+    }
+}
 
 /// The repeated `members` field (number 3) of `msg::MemberForces`, encoded once: per
 /// member the record {1: id, 2: force}, whose only changing bytes are the force's eight.
@@ -123,6 +195,89 @@ fn put_varint(out: &mut Vec<u8>, mut v: usize) {
     out.push(v as u8);
 }
 
+/// The scene's node markers, encoded once as the `cubes` (field 8: supported nodes) and
+/// `spheres` (field 9: the others) of the `tensegrity` entity: per node a record {1: pose
+/// {1: position {x, y, z}, 2: orientation {w = 1}}, 2: size, 3: colour} whose only changing
+/// bytes are the position's 24. Written between the entity's head (fields 1–3) and its
+/// lines and texts (fields 11, 13), they give the bytes prost encodes for the whole entity
+/// (tested), except that a zero coordinate is written rather than left out (it decodes the
+/// same).
+#[derive(Default)]
+struct NodeRecords {
+    bytes: Vec<u8>,
+    /// Where each node's x starts in `bytes` (y at +9, z at +18), by node index.
+    position_at: Vec<usize>,
+}
+
+impl NodeRecords {
+    /// `supports[n]`: the number of supported directions of node n; `diameter`: of the
+    /// spheres [m].
+    fn new(supports: &[usize], diameter: f64) -> Self {
+        let mut r = NodeRecords {
+            bytes: Vec::new(),
+            position_at: vec![0; supports.len()],
+        };
+        let edge = SUPPORT_SIZE * diameter;
+        for cubes in [true, false] {
+            for (n, &fixed) in supports.iter().enumerate() {
+                if (fixed > 0) != cubes {
+                    continue;
+                }
+                let (size, colour) = match fixed {
+                    0 => (diameter, GOLD),
+                    3 => (edge, GREEN),
+                    _ => (edge, PURPLE),
+                };
+                let mut size_bytes = Vec::new();
+                for (field, v) in [(1, size), (2, size), (3, size)] {
+                    put_double(&mut size_bytes, field, v);
+                }
+                let mut colour_bytes = Vec::new();
+                for (field, v) in [(1, colour.r), (2, colour.g), (3, colour.b), (4, colour.a)] {
+                    put_double(&mut colour_bytes, field, v);
+                }
+                // Pose: position (3 × (tag + 8 bytes) = 27 bytes), orientation {4: w} (9).
+                let body = 2 + 40 + 2 + size_bytes.len() + 2 + colour_bytes.len();
+                r.bytes.push(if cubes { 0x42 } else { 0x4a });
+                put_varint(&mut r.bytes, body);
+                r.bytes.extend_from_slice(&[0x0a, 40, 0x0a, 27]);
+                r.position_at[n] = r.bytes.len() + 1;
+                for tag in [0x09, 0x11, 0x19] {
+                    r.bytes.push(tag);
+                    r.bytes.extend_from_slice(&[0; 8]);
+                }
+                r.bytes.extend_from_slice(&[0x12, 9, 0x21]);
+                r.bytes.extend_from_slice(&1.0_f64.to_le_bytes());
+                r.bytes.push(0x12);
+                put_varint(&mut r.bytes, size_bytes.len());
+                r.bytes.extend_from_slice(&size_bytes);
+                r.bytes.push(0x1a);
+                put_varint(&mut r.bytes, colour_bytes.len());
+                r.bytes.extend_from_slice(&colour_bytes);
+            }
+        }
+        r
+    }
+
+    fn with_positions(&mut self, positions: &[Vector3<f64>]) -> &[u8] {
+        for (&at, p) in self.position_at.iter().zip(positions) {
+            for (k, v) in [p.x, p.y, p.z].into_iter().enumerate() {
+                let at = at + 9 * k;
+                self.bytes[at..at + 8].copy_from_slice(&v.to_le_bytes());
+            }
+        }
+        &self.bytes
+    }
+}
+
+/// A protobuf `double` field, left out when zero (as prost does).
+fn put_double(out: &mut Vec<u8>, field: u8, v: f64) {
+    if v != 0.0 {
+        out.push(field << 3 | 1);
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+}
+
 /// Messages of our own topics. The derive names each schema `<lowercase>.<Name>`.
 mod msg {
     #[derive(foxglove::Encode)]
@@ -168,7 +323,15 @@ pub struct McapRecorder {
     /// The `/tsim/members` message's member records, encoded once.
     member_records: MemberRecords,
     /// Point buffers of the scene's lines, one per (kind, state), reused between steps.
-    points: [Vec<Point3>; 6],
+    points: Vec<Vec<Point3>>,
+    /// The node spheres and support cubes, encoded once.
+    nodes: NodeRecords,
+    /// Node sphere diameter [m].
+    node_size: f64,
+    /// Where the legend stands: above the first state logged, for the whole case.
+    legend_at: Option<Vector3<f64>>,
+    /// The legend's lines that do not change (nodes and supports).
+    legend_key: String,
     stage: Option<Stage>,
     buf: Vec<u8>,
 }
@@ -212,7 +375,11 @@ impl McapRecorder {
             clock: Clock::default(),
             members: Vec::new(),
             member_records: MemberRecords::default(),
-            points: Default::default(),
+            points: vec![Vec::new(); 2 * (1 + 2 * LEVELS)],
+            nodes: NodeRecords::default(),
+            node_size: 0.0,
+            legend_at: None,
+            legend_key: String::new(),
             stage: None,
             buf: Vec::new(),
         })
@@ -265,9 +432,8 @@ impl McapRecorder {
         forces: &[f64],
         energy: Option<Energy>,
     ) -> Result<(), Error> {
-        let scene = self.scene(ns, positions, forces);
-        self.log(self.channels.scene, ns, &scene)?;
-        self.reclaim(scene);
+        self.encode_scene(stage, step, ns, positions, forces);
+        self.write_buf(self.channels.scene, ns)?;
         self.log_members(stage, step, ns, forces)?;
         if let Some(e) = energy {
             let total = e.kinetic + e.strain + e.damping - e.external;
@@ -285,21 +451,45 @@ impl McapRecorder {
         Ok(())
     }
 
-    /// One `LINE_LIST` per (kind, state) present, each of one colour: half the size of
-    /// per-vertex colours. The point buffers come from `self.points`; give the scene back to
-    /// [`McapRecorder::reclaim`] once encoded.
-    fn scene(&mut self, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) -> SceneUpdate {
-        let eps = SLACK_FRACTION * forces.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
-        // Bucket = 3 × kind (strut 0, cable 1) + state (brown 0, red 1, grey 2).
+    /// `/tsim/scene` into `self.buf`: the `tensegrity` entity's head, the node records
+    /// with this step's positions, then its lines and legend (see [`NodeRecords`]).
+    fn encode_scene(&mut self, stage: Stage, step: usize, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) {
+        let (head, tail) = self.scene(stage, step, ns, positions, forces);
+        let nodes = self.nodes.with_positions(positions);
+        let len = prost_len(&head) + nodes.len() + prost_len(&tail);
+        self.buf.clear();
+        self.buf.push(0x12); // SceneUpdate field 2 (entities), length-delimited
+        put_varint(&mut self.buf, len);
+        head.encode(&mut self.buf).expect("a Vec grows");
+        self.buf.extend_from_slice(nodes);
+        tail.encode(&mut self.buf).expect("a Vec grows");
+        self.reclaim(tail);
+    }
+
+    /// The scene entity in two parts: its head (timestamp, frame, id), and its lines and
+    /// legend. Members are coloured by force on two scales, each topped by the step's
+    /// largest force of its sign: tension pale to full red, compression pale to full blue,
+    /// in [`LEVELS`] shades; slack members (|N| at most [`SLACK_FRACTION`] of the largest,
+    /// or a cable in compression) grey. One `LINE_LIST` per (kind, colour) present: half the
+    /// size of per-vertex colours. The point buffers come from `self.points`; give the tail
+    /// back to [`McapRecorder::reclaim`] once encoded.
+    fn scene(&mut self, stage: Stage, step: usize, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) -> (SceneEntity, SceneEntity) {
+        let (mut tension, mut compression) = (0.0_f64, 0.0_f64);
+        for &f in forces {
+            tension = tension.max(f);
+            compression = compression.max(-f);
+        }
+        let eps = SLACK_FRACTION * tension.max(compression);
+        let states = 1 + 2 * LEVELS;
         for ((ends, kind), &force) in self.members.iter().zip(forces) {
             let state = if force.abs() <= eps || (*kind == MemberKind::Cable && force < 0.0) {
-                2
-            } else if force < 0.0 {
                 0
+            } else if force > 0.0 {
+                level(force, tension)
             } else {
-                1
+                LEVELS + level(force, compression)
             };
-            let bucket = 3 * usize::from(*kind == MemberKind::Cable) + state;
+            let bucket = states * usize::from(*kind == MemberKind::Cable) + state;
             self.points[bucket].extend(ends.map(|n| Point3 {
                 x: positions[n].x,
                 y: positions[n].y,
@@ -311,32 +501,56 @@ impl McapRecorder {
             if !points.is_empty() {
                 lines.push(LinePrimitive {
                     r#type: line_primitive::Type::LineList as i32,
-                    thickness: if bucket < 3 { STRUT_WIDTH } else { CABLE_WIDTH },
+                    thickness: if bucket < states { STRUT_WIDTH } else { CABLE_WIDTH },
                     scale_invariant: true,
                     points: std::mem::take(points),
-                    color: Some([BROWN, RED, GREY][bucket % 3]),
+                    color: Some(state_colour(bucket % states)),
                     ..Default::default()
                 });
             }
         }
+        let at = *self.legend_at.get_or_insert_with(|| legend_position(positions, self.node_size));
+        let scale = |max: f64| if max > 0.0 { format!("max {} N", sig3(max)) } else { "none".into() };
+        let text = format!(
+            "{} step {step}\ntension: red, {}\ncompression: blue, {}\nslack: grey; shade = |N| / max in {LEVELS} steps\n{}",
+            stage.name(),
+            scale(tension),
+            scale(compression),
+            self.legend_key,
+        );
+        let legend = TextPrimitive {
+            pose: Some(Pose {
+                position: Some(foxglove::messages::Vector3 { x: at.x, y: at.y, z: at.z }),
+                orientation: Some(Quaternion {
+                    w: 1.0,
+                    ..Default::default()
+                }),
+            }),
+            billboard: true,
+            font_size: LEGEND_FONT,
+            scale_invariant: true,
+            color: Some(WHITE),
+            text,
+        };
         let timestamp = Timestamp::new((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32);
-        let entity = SceneEntity {
+        let head = SceneEntity {
             timestamp: Some(timestamp),
             frame_id: "world".into(),
             id: "tensegrity".into(),
-            lines,
             ..Default::default()
         };
-        SceneUpdate {
-            entities: vec![entity],
+        let tail = SceneEntity {
+            lines,
+            texts: vec![legend],
             ..Default::default()
-        }
+        };
+        (head, tail)
     }
 
-    /// Returns the point buffers of a scene made by [`McapRecorder::scene`] for reuse.
-    fn reclaim(&mut self, scene: SceneUpdate) {
-        let lines = scene.entities.into_iter().flat_map(|e| e.lines);
-        for (slot, mut line) in self.points.iter_mut().filter(|p| p.is_empty()).zip(lines) {
+    /// Returns the point buffers of a scene's lines (the tail of [`McapRecorder::scene`]) for
+    /// reuse.
+    fn reclaim(&mut self, tail: SceneEntity) {
+        for (slot, mut line) in self.points.iter_mut().filter(|p| p.is_empty()).zip(tail.lines) {
             line.points.clear();
             *slot = line.points;
         }
@@ -348,6 +562,50 @@ impl McapRecorder {
         let ns = self.clock.step_stamp(t);
         self.log_state(stage, frame.step, ns, frame.positions, frame.forces, Some(frame.energy))
     }
+}
+
+fn prost_len(entity: &SceneEntity) -> usize {
+    entity.encoded_len().expect("prost messages know their length")
+}
+
+/// Node sphere diameter [m]: [`NODE_SIZE`] times the median member length of the model's
+/// initial shape (a fraction of its extent without members, 0.05 m for a single point).
+fn node_size(model: &Model) -> f64 {
+    let xyz: Vec<_> = model.positions();
+    let mut lengths: Vec<f64> = model
+        .members
+        .iter()
+        .map(|m| (xyz[m.nodes[1]] - xyz[m.nodes[0]]).norm())
+        .filter(|l| *l > 0.0 && l.is_finite())
+        .collect();
+    lengths.sort_by(f64::total_cmp);
+    if let Some(&median) = lengths.get(lengths.len() / 2) {
+        return NODE_SIZE * median;
+    }
+    let (lo, hi) = bounds(&xyz);
+    let extent = (hi - lo).norm();
+    if extent > 0.0 && extent.is_finite() {
+        0.02 * extent
+    } else {
+        0.05
+    }
+}
+
+fn bounds(xyz: &[Vector3<f64>]) -> (Vector3<f64>, Vector3<f64>) {
+    let lo = xyz.iter().fold(Vector3::repeat(f64::INFINITY), |a, p| a.inf(p));
+    let hi = xyz.iter().fold(Vector3::repeat(f64::NEG_INFINITY), |a, p| a.sup(p));
+    (lo, hi)
+}
+
+/// Above the middle of the shape's top, clear of it by a tenth of its extent (at least
+/// four node diameters).
+fn legend_position(xyz: &[Vector3<f64>], node_size: f64) -> Vector3<f64> {
+    if xyz.is_empty() {
+        return Vector3::zeros();
+    }
+    let (lo, hi) = bounds(xyz);
+    let clear = (0.1 * (hi - lo).norm()).max(4.0 * node_size);
+    Vector3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), hi.z + clear)
 }
 
 /// Registers topic `topic` with `T`'s schema and encoding.
@@ -428,6 +686,22 @@ impl Recorder for McapRecorder {
     fn model(&mut self, record: &ModelRecord) -> RecordResult {
         self.members = record.model.members.iter().map(|m| (m.nodes, m.kind)).collect();
         self.member_records = MemberRecords::new(record.model.members.iter().map(|m| m.id.as_str()));
+        let supports: Vec<usize> = record
+            .model
+            .nodes
+            .iter()
+            .map(|n| n.support.iter().filter(|&&s| s).count())
+            .collect();
+        self.node_size = node_size(record.model);
+        self.nodes = NodeRecords::new(&supports, self.node_size);
+        let fixed = supports.iter().filter(|&&s| s == 3).count();
+        let partly = supports.iter().filter(|&&s| s > 0 && s < 3).count();
+        self.legend_key = match (fixed, partly) {
+            (0, 0) => "nodes: gold".into(),
+            (_, 0) => "nodes: gold; supports: green cubes".into(),
+            (0, _) => "nodes: gold; supports: purple cubes (some directions)".into(),
+            _ => "nodes: gold; supports: green cubes (purple: some directions)".into(),
+        };
         Ok(())
     }
 
@@ -563,35 +837,136 @@ mod tests {
         assert!(summary.chunk_indexes.iter().all(|c| c.compression == "zstd"));
     }
 
+    fn scene_recorder(model: &Model, name: &str) -> McapRecorder {
+        let mut rec = McapRecorder::create(&temp_path(name), "c").unwrap();
+        let members = model.members.len();
+        rec.model(&ModelRecord {
+            model,
+            rest_lengths: &vec![1.0; members],
+            masses: &vec![1.0; model.node_count()],
+            mass_reading: "physical",
+            constraints: &[],
+            path_modes: 0,
+        })
+        .unwrap();
+        rec
+    }
+
+    fn decoded_scene(rec: &mut McapRecorder, positions: &[Vector3<f64>], forces: &[f64]) -> SceneEntity {
+        rec.encode_scene(Stage::Deployment, 7, 1_500_000_000, positions, forces);
+        let mut update = <SceneUpdate as foxglove::Decode>::decode(rec.buf.as_slice()).unwrap();
+        assert_eq!(update.entities.len(), 1);
+        update.entities.remove(0)
+    }
+
     #[test]
-    fn colours_members_by_state() {
+    fn colours_members_by_force() {
         let model = TowerSpec {
             struts: 3,
             stages: 1,
             ..TowerSpec::paper()
         }
         .build();
-        let path = temp_path("colours.mcap");
-        let mut rec = McapRecorder::create(&path, "c").unwrap();
-        rec.model(&ModelRecord {
-            model: &model,
-            rest_lengths: &[1.0; 12],
-            masses: &[1.0; 6],
-            mass_reading: "physical",
-            constraints: &[],
-            path_modes: 0,
-        })
-        .unwrap();
+        let mut rec = scene_recorder(&model, "colours.mcap");
         // Struts, then side cables (the second below the slack threshold), then rings.
-        let forces = [-5.0, -5.0, 0.0, 2.0, 1e-9, -1.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0];
-        let scene = rec.scene(0, &model.positions(), &forces);
-        let summary: Vec<_> = scene.entities[0]
+        let forces = [-5.0, -1.0, 0.0, 2.0, 1e-9, -1.0, 3.0, 3.0, 3.0, 0.5, 8.0, 8.0];
+        let entity = decoded_scene(&mut rec, &model.positions(), &forces);
+        let summary: Vec<_> = entity
             .lines
             .iter()
             .map(|l| (l.thickness, l.color.unwrap(), l.points.len()))
             .collect();
         let (s, c) = (STRUT_WIDTH, CABLE_WIDTH);
-        assert_eq!(summary, [(s, BROWN, 4), (s, GREY, 2), (c, RED, 14), (c, GREY, 4)]);
+        // Compression scale topped by 5 N: −1 N is shade 1, −5 N shade 4; tension by 8 N:
+        // 0.5 N shade 1, 2 N shade 1, 3 N shade 2, 8 N shade 4.
+        let shade = |n| state_colour(n);
+        assert_eq!(
+            summary,
+            [
+                (s, GREY, 2),
+                (s, shade(LEVELS + 1), 2),
+                (s, shade(2 * LEVELS), 2),
+                (c, GREY, 4),
+                (c, shade(1), 4),
+                (c, shade(2), 6),
+                (c, shade(4), 4),
+            ]
+        );
+        assert_eq!(shade(LEVELS), RED);
+        assert_eq!(shade(2 * LEVELS), BLUE);
+        let legend = &entity.texts[0].text;
+        assert!(legend.contains("tension: red, max 8.00 N"), "{legend}");
+        assert!(legend.contains("compression: blue, max 5.00 N"), "{legend}");
+        assert!(legend.contains("deployment step 7"), "{legend}");
         rec.finish(&Outcome::Complete).unwrap();
+    }
+
+    /// Spheres at free nodes, cubes at supported ones, at this step's positions; the
+    /// bytes are prost's for the whole update when no coordinate is zero.
+    #[test]
+    fn marks_nodes_and_supports_with_the_bytes_prost_encodes() {
+        let mut model = TowerSpec {
+            struts: 3,
+            stages: 1,
+            ..TowerSpec::paper()
+        }
+        .build();
+        model.nodes[1].support = [false, false, true];
+        let supports: Vec<_> = model.nodes.iter().map(|n| n.support.iter().filter(|&&s| s).count()).collect();
+        assert!(supports.contains(&3) && supports.contains(&0));
+        let mut rec = scene_recorder(&model, "nodes.mcap");
+        let shifted: Vec<_> = model.positions().iter().map(|p| p + Vector3::new(0.25, -0.5, 1.5)).collect();
+        let forces = [-5.0, -5.0, -5.0, 2.0, 2.0, 2.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0];
+        let entity = decoded_scene(&mut rec, &shifted, &forces);
+        let d = rec.node_size;
+        assert!(d > 0.0);
+        let at = |pose: &Option<Pose>| {
+            let p = pose.as_ref().unwrap().position.as_ref().unwrap();
+            Vector3::new(p.x, p.y, p.z)
+        };
+        let free: Vec<_> = (0..6).filter(|&n| supports[n] == 0).collect();
+        let held: Vec<_> = (0..6).filter(|&n| supports[n] > 0).collect();
+        assert_eq!(entity.spheres.len(), free.len());
+        assert_eq!(entity.cubes.len(), held.len());
+        for (sphere, &n) in entity.spheres.iter().zip(&free) {
+            assert_eq!(at(&sphere.pose), shifted[n]);
+            assert_eq!(sphere.size.as_ref().unwrap().x, d);
+            assert_eq!(sphere.color, Some(GOLD));
+        }
+        for (cube, &n) in entity.cubes.iter().zip(&held) {
+            assert_eq!(at(&cube.pose), shifted[n]);
+            assert_eq!(cube.size.as_ref().unwrap().z, SUPPORT_SIZE * d);
+            assert_eq!(cube.color, Some(if supports[n] == 3 { GREEN } else { PURPLE }));
+        }
+        assert!(entity.texts[0].text.contains("purple: some directions"));
+
+        // Prost's bytes for the decoded update equal ours.
+        let ours = rec.buf.clone();
+        let mut theirs = Vec::new();
+        SceneUpdate {
+            entities: vec![entity],
+            ..Default::default()
+        }
+        .encode(&mut theirs)
+        .unwrap();
+        assert_eq!(ours, theirs);
+
+        // A zero coordinate is written, and reads back as zero.
+        let mut zeros = shifted.clone();
+        zeros[0] = Vector3::zeros();
+        let entity = decoded_scene(&mut rec, &zeros, &forces);
+        let first = if supports[0] > 0 {
+            &entity.cubes[0].pose
+        } else {
+            &entity.spheres[0].pose
+        };
+        assert_eq!(at(first), Vector3::zeros());
+        rec.finish(&Outcome::Complete).unwrap();
+    }
+
+    #[test]
+    fn formats_three_significant_digits() {
+        let got: Vec<_> = [0.0, 1234.4, 8.0, 0.01234, 123_456.0, -2.5e-4].map(sig3).into();
+        assert_eq!(got, ["0", "1234", "8.00", "0.0123", "1.23e5", "-2.50e-4"]);
     }
 }

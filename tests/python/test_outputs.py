@@ -237,11 +237,24 @@ def test_mcap_decodes_with_foxglove_schemas(sample):
     fv_times = [t for t, m in topics["/tsim/energy"] if m.stage == "free_vibration"]
     assert fv_times[0] == pytest.approx(0.2e9, abs=1) and fv_times[-2] == pytest.approx(0.5e9, abs=1)
 
-    # One LINE_LIST per (kind, state): all struts compressed (brown), all cables taut (red).
+    # One LINE_LIST per (kind, colour): struts at the top of the compression scale (full
+    # blue), cables at the top of the tension scale (full red).
     _, scene = topics["/tsim/scene"][1]
-    lines = scene.entities[0].lines
+    entity = scene.entities[0]
+    lines = entity.lines
     assert [(line.type, line.thickness, len(line.points)) for line in lines] == [(2, 6, 2 * 10), (2, 2, 2 * 40)]
-    assert [line.color.r for line in lines] == [pytest.approx(0.55), pytest.approx(0.85)]
+    assert [(line.color.r, line.color.b) for line in lines] == [pytest.approx((0.10, 0.90)), pytest.approx((0.85, 0.10))]
+    # Node spheres, cubes at supported nodes, at the step's positions; the legend's scale.
+    with h5py.File(sample / "result.h5", "r") as f:
+        supported = f["model/support"][:].any(axis=1)
+        position = f["free_vibration/position"][0]
+    assert len(entity.cubes) == supported.sum() > 0 and len(entity.spheres) == (~supported).sum()
+    xyz = lambda prims: np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in prims])
+    np.testing.assert_allclose(xyz(entity.cubes), position[supported])
+    np.testing.assert_allclose(xyz(entity.spheres), position[~supported])
+    assert entity.spheres[0].size.x > 0 and entity.cubes[0].size.x > entity.spheres[0].size.x
+    legend = entity.texts[0].text
+    assert "tension: red, max 5.00 N" in legend and "compression: blue, max 10.0 N" in legend, legend
     _, members = topics["/tsim/members"][1]
     assert members.members[0].id == "strut0_0" and members.members[0].force == -10.0
 

@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# scripts/setup's routes without touching the machine: each case runs it with stub commands
+# first on PATH (no pkg-config HDF5, no dpkg packages, not root, no sudo, an apt-get that
+# records its calls) and a fake HDF5 prefix where a case wants one. Run by scripts/test;
+# alone: tests/shell/setup.sh (prints each case's output with -v).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+verbose=0
+[ "${1:-}" = -v ] && verbose=1
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+stubs="$tmp/bin"
+mkdir -p "$stubs"
+stub() { printf '#!/bin/sh\n%s\n' "$2" >"$stubs/$1"; chmod +x "$stubs/$1"; }
+stub pkg-config 'exit 1'
+stub dpkg-query 'exit 1'
+stub h5cc 'exit 1'
+stub sudo 'exit 1'
+stub apt-get 'echo "apt-get $*" >>"$APT_LOG"; exit 0'
+stub id 'if [ "$1" = -u ]; then echo "${FAKE_UID:-1000}"; else /usr/bin/id "$@"; fi'
+fake="$tmp/hdf5"
+mkdir -p "$fake/include" "$fake/lib"
+touch "$fake/include/hdf5.h" "$fake/include/hdf5_hl.h" "$fake/lib/libhdf5.so" "$fake/lib/libhdf5_hl.so"
+
+failures=0
+# run <name> <expected exit> <expected text...> -- <env assignments...>
+run() {
+  local name=$1 want=$2; shift 2
+  local texts=()
+  while [ "$1" != -- ]; do texts+=("$1"); shift; done
+  shift
+  : >"$tmp/apt.log"
+  local rc=0
+  env -u HDF5_DIR -u HDF5_ROOT -u CONDA_PREFIX -u LD_LIBRARY_PATH APT_LOG="$tmp/apt.log" \
+    PATH="$stubs:$PATH" "$@" scripts/setup >"$tmp/out" 2>&1 || rc=$?
+  local ok=1
+  [ "$rc" = "$want" ] || ok=0
+  for t in "${texts[@]}"; do grep -qF -- "$t" "$tmp/out" "$tmp/apt.log" || { ok=0; echo "  missing: $t"; }; done
+  if [ "$ok" = 1 ]; then echo "ok   $name"; else echo "FAIL $name (exit $rc, wanted $want)"; failures=$((failures + 1)); fi
+  if [ "$verbose" = 1 ] || [ "$ok" = 0 ]; then sed 's/^/    | /' "$tmp/out" "$tmp/apt.log"; fi
+}
+no_apt_call() { [ ! -s "$tmp/apt.log" ] || { echo "FAIL $1: apt-get was called"; failures=$((failures + 1)); }; }
+
+run "no HDF5, no root: says what to do, never calls apt" 1 \
+  "module load hdf5" "conda install -c conda-forge hdf5" "export HDF5_DIR=" "--enable-hl" "brew install hdf5" --
+no_apt_call "no HDF5, no root"
+run "HDF5_DIR with the high-level library: used, no apt" 0 \
+  "using HDF5 from HDF5_DIR=$fake" "LD_LIBRARY_PATH=\"$fake/lib" -- HDF5_DIR="$fake"
+no_apt_call "HDF5_DIR"
+run "HDF5_DIR without the high-level library: refused" 1 "lacks include/hdf5.h" -- HDF5_DIR="$tmp"
+run "a conda environment: named for HDF5_DIR" 1 "export HDF5_DIR=$fake" -- CONDA_PREFIX="$fake"
+run "an HPC module's HDF5_ROOT: named for HDF5_DIR" 1 "export HDF5_DIR=$fake" -- HDF5_ROOT="$fake"
+no_apt_call "HDF5_ROOT"
+stub rustc 'echo "rustc 1.63.0"'
+run "Debian's rustc 1.63: rustup named" 1 "older than tsim's minimum" "rustup" -- HDF5_DIR="$fake"
+rm "$stubs/rustc"
+run "root without HDF5: apt installs libhdf5-dev" 0 "apt-get install -y -qq libhdf5-dev pkg-config" -- FAKE_UID=0
+
+[ "$failures" = 0 ] || { echo "$failures failure(s)"; exit 1; }
