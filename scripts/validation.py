@@ -104,8 +104,8 @@ class Runner:
         if not summary.exists():
             sys.exit(f"{study}: tsim failed:\n{proc.stderr}")
         cases = json.loads(summary.read_text())
-        # "skipped (complete)": a --keep directory's case already run with the same case.yaml.
-        failed = [f"{c['id']}: {c['status']}" for c in cases if c["status"] not in ("complete", "skipped (complete)")]
+        # A --keep directory's case already run with the same case.yaml is "complete" too (run: "reused").
+        failed = [f"{c['id']}: {c['status']} {c.get('reason', '')}" for c in cases if c["status"] != "complete"]
         if failed:
             sys.exit(f"{study}: cases failed (a measured result needs them all):\n" + "\n".join(failed))
         for c in cases:

@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tsim::config::{bytes_text, ConfigError};
-use tsim::run::{default_jobs, install_interrupt, interrupted, load, run, Expanded, RunOptions, EXIT_INTERRUPTED};
+use tsim::run::{collect, default_jobs, install_interrupt, interrupted, load, run, Expanded, RunOptions, EXIT_INTERRUPTED};
 
 #[derive(Parser)]
 #[command(
@@ -43,6 +43,14 @@ enum Command {
         #[arg(long)]
         allow_large: bool,
     },
+    /// Gather a run directory's cases into one xarray-ready file, RUN_DIR/collected.h5
+    /// (also written at the end of `tsim run`): a `case` dimension with the swept
+    /// parameters as coordinates, the summary's figures and the energy histories. Exits 1
+    /// when a case is missing or not complete (listed; the file is still written).
+    Collect {
+        /// A run directory (OUT/<name>, holding summary.json).
+        run_dir: PathBuf,
+    },
     /// Validate a config and list the cases it would run, with their estimated output
     /// and peak memory.
     Check {
@@ -64,6 +72,24 @@ fn report(e: &ConfigError) {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Collect { run_dir } => match collect(&run_dir) {
+            Ok(c) => {
+                for (id, why) in &c.missing {
+                    eprintln!("missing: {id}: {why}");
+                }
+                eprintln!(
+                    "{} case(s), {} missing or not complete; written {}",
+                    c.cases,
+                    c.missing.len(),
+                    c.path.display()
+                );
+                ExitCode::from(u8::from(!c.missing.is_empty()))
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::from(2)
+            }
+        },
         Command::Check { config, allow_large } => match load(&config, allow_large) {
             Ok(Expanded { name, cases, limits }) => {
                 println!("{}: {} case(s) into {name}/", config.display(), cases.len());

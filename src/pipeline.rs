@@ -15,6 +15,7 @@ use crate::stage::transient::TransientSummary;
 use crate::stage::{Analysis, Settings};
 use crate::structure::{State, Structure};
 use nalgebra::Vector3;
+use std::time::Instant;
 
 /// Key figures of every stage that ran.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
@@ -31,6 +32,11 @@ pub struct CaseSummary {
     pub free_vibration: Option<TransientSummary>,
     pub folding: Option<FoldSummary>,
     pub deployment: Option<DeploymentSummary>,
+    /// Wall time of each stage that ran, recording included [s], by stage name
+    /// (`formfinding` or `equilibrium` with substitution, `static`, `eigen`,
+    /// `free_vibration`, `folding`, `deployment`).
+    #[serde(default)]
+    pub stage_seconds: std::collections::BTreeMap<String, f64>,
 }
 
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
@@ -51,12 +57,19 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     let model = cfg.model.build()?;
     let settings = cfg.settings();
     let mut summary = CaseSummary::default();
+    let mut clock = Instant::now();
+    // Wall time since the previous lap, as the stage's.
+    let mut lap = |summary: &mut CaseSummary, stage: Stage| {
+        summary.stage_seconds.insert(stage.name().into(), clock.elapsed().as_secs_f64());
+        clock = Instant::now();
+    };
     // 1–2. Form-finding and substitution by real materials (or the given rest lengths).
     let (mut structure, unloaded, found) = shape(cfg, &model, &settings, recorder)?;
     summary.substitution = SubstitutionSummary::new(&structure, &unloaded)?;
     summary.substitution.require_stable(cfg.substitution.allow_unstable)?;
     let folding = cfg.folding(&model)?;
     record_structure(recorder, &structure, &unloaded, &found, cfg.masses.as_str(), folding.as_ref())?;
+    lap(&mut summary, found.stage);
     match found.stage {
         Stage::FormFinding => summary.formfinding = Some(found.summary),
         _ => summary.equilibrium = Some(found.summary),
@@ -68,12 +81,14 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
         let (state, statics) = loading.run(&structure, equilibrium, &settings, recorder)?;
         structure.dead_load = loading.dead_load(statics.load_factor);
         (equilibrium, summary.statics) = (state, Some(statics));
+        lap(&mut summary, Stage::Static);
     }
     // 3. Eigen analysis at the equilibrium, and the Rayleigh damping it gives.
     if let Some(eigen) = cfg.eigen_stage() {
         let (_, eig) = eigen.run(&structure, equilibrium.clone(), &settings, recorder)?;
         structure.damping = eig.rayleigh();
         summary.eigen = Some(eig);
+        lap(&mut summary, Stage::Eigen);
     }
     // 4. Free vibration about the equilibrium (or as `initial.from` says).
     let mut previous = equilibrium.clone();
@@ -82,19 +97,23 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
         let start = start_state(spec, StartFrom::Equilibrium, [&equilibrium, &equilibrium, &previous]);
         let (end, transient) = stage.run(&structure, start, &settings, recorder)?;
         (previous, summary.free_vibration) = (end, Some(transient));
+        lap(&mut summary, Stage::FreeVibration);
     }
     // 5. Folding from the equilibrium.
     let mut folded = equilibrium.clone();
     if let Some(folding) = folding {
         let (state, fold) = folding.run(&structure, equilibrium.clone(), &settings, recorder)?;
         (folded, previous, summary.folding) = (state.clone(), state, Some(fold));
+        lap(&mut summary, Stage::Folding);
     }
     // 6. Deployment from the folded state (or as `initial.from` says).
     if let Some(spec) = &cfg.deployment {
         let stage = cfg.transient(spec, Stage::Deployment, &model)?;
         let start = start_state(spec, StartFrom::Folded, [&equilibrium, &folded, &previous]);
-        let (deployed, transient) = stage.run(&structure, start, &settings, recorder)?;
+        // The shape error at every step, for the time it comes within 1 % of the pre-fold shape.
+        let (deployed, transient) = stage.run_towards(&structure, start, &settings, recorder, Some(&equilibrium.positions))?;
         summary.deployment = Some(DeploymentSummary::new(transient, deployed, &equilibrium));
+        lap(&mut summary, Stage::Deployment);
     }
     Ok(summary)
 }

@@ -62,16 +62,31 @@ fn sweep_runs_in_stable_order_and_resumes() {
     }
     assert!(outcomes(&out).iter().all(|o| o["status"] == "complete"));
 
+    assert!(outcomes(&out).iter().all(|o| o["run"] == "computed"));
+
+    // A resume reuses the complete cases: their status stays `complete` (a pandas filter
+    // on it must find them), and the `run` column says they were reused.
     let again = tsim(&["run", SWEEP, "--out", out.to_str().unwrap()]);
     assert!(again.status.success());
     assert!(
-        outcomes(&out).iter().all(|o| o["status"] == "skipped (complete)"),
+        outcomes(&out).iter().all(|o| o["status"] == "complete" && o["run"] == "reused"),
         "{:?}",
         outcomes(&out)
     );
+    let csv = std::fs::read_to_string(out.join("small/summary.csv")).unwrap();
+    let column = |name: &str| -> Vec<String> {
+        let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+        let k = header
+            .iter()
+            .position(|h| *h == name)
+            .unwrap_or_else(|| panic!("no `{name}` in {header:?}"));
+        csv.lines().skip(1).map(|l| l.split(',').nth(k).unwrap().to_string()).collect()
+    };
+    assert_eq!(column("status"), ["complete"; 4], "{csv}");
+    assert_eq!(column("run"), ["reused"; 4], "{csv}");
     let forced = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--force"]);
     assert!(forced.status.success());
-    assert!(outcomes(&out).iter().all(|o| o["status"] == "complete"));
+    assert!(outcomes(&out).iter().all(|o| o["status"] == "complete" && o["run"] == "computed"));
 }
 
 /// Cases are independent and each runs sequentially inside, so the thread count must not
@@ -83,6 +98,7 @@ fn parallel_equals_serial() {
         match v {
             serde_json::Value::Object(o) => {
                 o.remove("wall_seconds");
+                o.remove("stage_seconds");
                 o.values_mut().for_each(strip);
             }
             serde_json::Value::Array(a) => a.iter_mut().for_each(strip),
@@ -324,12 +340,15 @@ fn a_failing_case_does_not_stop_the_others() {
     let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1));
     let o = outcomes(&dir);
-    let failed: Vec<_> = o.iter().filter(|c| c["status"].as_str().unwrap().starts_with("failed")).collect();
+    let failed: Vec<_> = o.iter().filter(|c| c["status"] == "failed").collect();
     assert_eq!(failed.len(), 2, "{o:?}");
     for f in failed {
-        let s = f["status"].as_str().unwrap();
+        let s = f["reason"].as_str().unwrap();
         assert!(s.contains("did not converge"), "{s}");
     }
+    // summary.csv: status is the bare word, the reason in its own column.
+    let csv = std::fs::read_to_string(dir.join("small/summary.csv")).unwrap();
+    assert_eq!(csv.lines().filter(|l| l.contains(",failed,computed,")).count(), 2, "{csv}");
     assert_eq!(o.iter().filter(|c| c["status"] == "complete").count(), 2);
 }
 
@@ -427,10 +446,11 @@ fn an_unstable_structure_fails_at_substitution() {
     let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1));
     let o = outcomes(&dir);
-    let status = o[0]["status"].as_str().unwrap();
+    assert_eq!(o[0]["status"], "failed");
+    let reason = o[0]["reason"].as_str().unwrap();
     assert!(
-        status.starts_with("failed: substitution: the real structure is not stable") && status.contains("node `"),
-        "{status}"
+        reason.starts_with("substitution: the real structure is not stable") && reason.contains("node `"),
+        "{reason}"
     );
 }
 
@@ -449,13 +469,17 @@ fn resume_verifies_outputs_and_a_used_directory_is_locked() {
     std::fs::OpenOptions::new().write(true).open(&h5).unwrap().set_len(len / 2).unwrap();
     std::fs::remove_file(dir.join("cable-nylon_zeta-0.1/replay.mcap")).unwrap();
     assert!(run(&[]).status.success());
-    let status: Vec<(String, String)> = outcomes(&out)
+    let status: Vec<(String, String, String)> = outcomes(&out)
         .iter()
-        .map(|o| (o["id"].as_str().unwrap().to_string(), o["status"].as_str().unwrap().to_string()))
+        .map(|o| {
+            let text = |k: &str| o[k].as_str().unwrap().to_string();
+            (text("id"), text("status"), text("run"))
+        })
         .collect();
-    for (id, s) in &status {
+    for (id, s, run) in &status {
         let damaged = id == "cable-rubber_zeta-0.05" || id == "cable-nylon_zeta-0.1";
-        assert_eq!(s, if damaged { "complete" } else { "skipped (complete)" }, "{status:?}");
+        assert_eq!(s, "complete", "{status:?}");
+        assert_eq!(run, if damaged { "computed" } else { "reused" }, "{status:?}");
     }
 
     let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap();
@@ -515,10 +539,7 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
         let again = tsim(&args);
         assert!(again.status.success(), "{}", String::from_utf8_lossy(&again.stderr));
         let o = outcomes(&dir);
-        assert!(
-            o.iter().all(|c| c["status"] == "complete" || c["status"] == "skipped (complete)"),
-            "{o:?}"
-        );
+        assert!(o.iter().all(|c| c["status"] == "complete"), "{o:?}");
     }
 }
 
@@ -602,4 +623,31 @@ fn limits_stay_out_of_case_yaml() {
     let low = good.replace("masses: paper", "masses: paper\nlimits: { max_steps: 50 }");
     let (out, _) = bad_config(&low);
     assert!(String::from_utf8_lossy(&out.stderr).contains("at most 5e1 are allowed"));
+}
+
+/// `tsim run` ends with `collected.h5`; `tsim collect` writes it again and exits 0 when
+/// every case is complete, 1 listing a case whose result.h5 is gone (the file still
+/// written, that case's row kept), and 2 for a directory that is no run.
+#[test]
+fn collect_lists_missing_cases_in_its_exit_code() {
+    let out = scratch("collect");
+    let run = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--quiet"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let dir = out.join("small");
+    assert!(dir.join("collected.h5").is_file());
+    let all = tsim(&["collect", dir.to_str().unwrap()]);
+    assert_eq!(all.status.code(), Some(0), "{}", String::from_utf8_lossy(&all.stderr));
+
+    std::fs::remove_file(dir.join("cable-nylon_zeta-0.05/result.h5")).unwrap();
+    let some = tsim(&["collect", dir.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&some.stderr);
+    assert_eq!(some.status.code(), Some(1), "{err}");
+    assert!(err.contains("missing: cable-nylon_zeta-0.05: "), "{err}");
+    assert_eq!(err.matches("missing: ").count(), 1, "{err}");
+    let file = hdf5::File::open(dir.join("collected.h5")).unwrap();
+    assert_eq!(file.dataset("case").unwrap().size(), 4);
+
+    let none = tsim(&["collect", out.to_str().unwrap()]);
+    assert_eq!(none.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&none.stderr).contains("summary.json"));
 }

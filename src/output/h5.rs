@@ -2,7 +2,8 @@
 //! `xarray.open_dataset(path, engine="h5netcdf", group=...)` shows named dimensions and
 //! coordinates with no glue code (issue 4 is the contract; its names must not change).
 //!
-//! Layout: root attributes `tsim_version`, `case_id`, `config`, `units`, `status`; groups
+//! Layout: root attributes `tsim_version`, `case_id`, `config`, `units`, `status` (and
+//! a sweep case's parameters, `sweep.<axis>` and `set.<dotted path>`); groups
 //! `/model`, `/formfinding`, `/eigen` (written once, exact sizes) and `/free_vibration`,
 //! `/folding`, `/deployment` (unlimited `time` dimension, streamed). Every dimension is an
 //! HDF5 dimension scale (H5DS) whose coordinate variable lives in the same group, so each
@@ -29,6 +30,16 @@ use std::ffi::{c_char, c_uint, CString};
 use std::path::Path;
 
 type Error = Box<dyn std::error::Error + Send + Sync>;
+
+/// A sweep parameter's value as a root attribute of `result.h5`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamValue {
+    Number(f64),
+    /// A list of numbers (e.g. `eigen.rayleigh.ratios`).
+    Numbers(Vec<f64>),
+    /// Text, and any other value as its JSON text.
+    Text(String),
+}
 
 /// Capacity of the fixed-length `status` attribute [bytes]; longer reasons are truncated.
 const STATUS_LEN: usize = 512;
@@ -96,6 +107,22 @@ impl Hdf5Recorder {
         };
         open.set_status("running")?;
         Ok(Hdf5Recorder { open: Some(open) })
+    }
+
+    /// The case's sweep parameters as root attributes (before anything streams): numbers
+    /// as numbers (a list of numbers as an array), text as text.
+    pub fn write_params(&mut self, params: &[(String, ParamValue)]) -> Result<(), Error> {
+        let Some(open) = &self.open else { return Ok(()) };
+        for (name, value) in params {
+            match value {
+                ParamValue::Number(x) => open.file.new_attr::<f64>().create(name.as_str())?.write_scalar(x)?,
+                ParamValue::Numbers(x) => {
+                    open.file.new_attr_builder().with_data(x.as_slice()).create(name.as_str())?;
+                }
+                ParamValue::Text(t) => str_attr(&open.file, name, t)?,
+            }
+        }
+        Ok(())
     }
 
     fn open(&mut self) -> Result<&mut Open, Error> {
@@ -549,24 +576,24 @@ impl Series {
 }
 
 /// Creates datasets in one group and attaches them to the group's dimension scales.
-struct Dims {
-    group: Group,
+pub(super) struct Dims {
+    pub(super) group: Group,
     scales: Vec<(String, Dataset)>,
 }
 
 impl Dims {
-    fn new(group: Group) -> Self {
+    pub(super) fn new(group: Group) -> Self {
         Dims { group, scales: Vec::new() }
     }
 
     /// A coordinate variable: a 1-D dataset that is the dimension scale of its own name.
-    fn coord<T: H5Type>(&mut self, name: &str, values: &[T], units: &str, long_name: &str) -> Result<(), Error> {
+    pub(super) fn coord<T: H5Type>(&mut self, name: &str, values: &[T], units: &str, long_name: &str) -> Result<(), Error> {
         let ds = self.group.new_dataset_builder().with_data(values).create(name)?;
         describe(&ds, units, long_name)?;
         self.scale(name, ds)
     }
 
-    fn labels<S: AsRef<str>>(&mut self, name: &str, labels: &[S], long_name: &str) -> Result<(), Error> {
+    pub(super) fn labels<S: AsRef<str>>(&mut self, name: &str, labels: &[S], long_name: &str) -> Result<(), Error> {
         self.coord(name, &varlen(labels)?, "1", long_name)
     }
 
@@ -606,7 +633,7 @@ impl Dims {
     }
 
     /// A fixed-size variable written at once; `values` in row-major order over `dims`.
-    fn var<T: H5Type>(&self, name: &str, dims: &[&str], values: &[T], units: &str, long_name: &str) -> Result<(), Error> {
+    pub(super) fn var<T: H5Type>(&self, name: &str, dims: &[&str], values: &[T], units: &str, long_name: &str) -> Result<(), Error> {
         let ds = self.group.new_dataset::<T>().shape(self.sizes(dims)?).create(name)?;
         ds.write_raw(values)?;
         describe(&ds, units, long_name)?;
@@ -690,14 +717,14 @@ fn describe(ds: &Dataset, units: &str, long_name: &str) -> Result<(), Error> {
     str_attr(ds, "long_name", long_name)
 }
 
-fn str_attr(loc: &Location, name: &str, value: &str) -> Result<(), Error> {
+pub(super) fn str_attr(loc: &Location, name: &str, value: &str) -> Result<(), Error> {
     loc.new_attr::<VarLenUnicode>()
         .create(name)?
         .write_scalar(&value.parse::<VarLenUnicode>()?)?;
     Ok(())
 }
 
-fn varlen<S: AsRef<str>>(values: &[S]) -> Result<Vec<VarLenUnicode>, Error> {
+pub(super) fn varlen<S: AsRef<str>>(values: &[S]) -> Result<Vec<VarLenUnicode>, Error> {
     values.iter().map(|s| Ok(s.as_ref().parse()?)).collect()
 }
 

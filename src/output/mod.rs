@@ -4,6 +4,7 @@
 
 mod background;
 mod chunk;
+pub mod collected;
 pub mod h5;
 pub mod replay;
 
@@ -20,6 +21,7 @@ use std::path::Path;
 /// per file: each frame is copied into one queue instead of two, and the writers do not
 /// take turns with each other and the solver on the one free core (wall time on the paper
 /// case was the same within noise either way).
+/// `params` (a sweep case's parameters) become root attributes of result.h5.
 /// `outputs.every` is not theirs to apply: the stages call `frame` only for the steps to
 /// record.
 pub fn file_recorders(
@@ -27,11 +29,14 @@ pub fn file_recorders(
     dir: &Path,
     case_id: &str,
     config_yaml: &str,
+    params: &[(String, h5::ParamValue)],
     background: bool,
 ) -> Result<Box<dyn Recorder + Send>, Box<dyn std::error::Error + Send + Sync>> {
     let mut files: Vec<Box<dyn Recorder + Send>> = Vec::new();
     if outputs.hdf5 {
-        files.push(Box::new(h5::Hdf5Recorder::create(&dir.join("result.h5"), case_id, config_yaml)?));
+        let mut h5 = h5::Hdf5Recorder::create(&dir.join("result.h5"), case_id, config_yaml)?;
+        h5.write_params(params)?;
+        files.push(Box::new(h5));
     }
     if outputs.mcap {
         files.push(Box::new(replay::McapRecorder::create(&dir.join("replay.mcap"), case_id)?));

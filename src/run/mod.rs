@@ -2,11 +2,13 @@
 //! in parallel with rayon, each into its own directory, and a summary table collects them.
 //! The only place that knows about files, threads and progress display.
 
+mod collect;
 mod files;
 mod interrupt;
 mod progress;
 mod sweep;
 
+pub use collect::{collect, Collected};
 pub use interrupt::{install as install_interrupt, interrupted, EXIT_INTERRUPTED};
 pub use progress::Progress;
 pub use sweep::{expand, Case, Expanded};
@@ -27,43 +29,71 @@ pub struct RunOptions {
     pub quiet: bool,
 }
 
-/// How one case ended, in this run.
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// How one case stands at the end of this run: one of a fixed set of words, whatever the
+/// run did to it (`CaseOutcome::run` says that).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum CaseStatus {
-    /// Run to the end now.
+    /// Every stage finished (in this run or, reused, in an earlier one).
     Complete,
-    /// Complete from an earlier run with the same resolved config; not rerun.
-    Skipped,
-    Failed(String),
+    /// A stage failed (or its outputs could not be written); the reason is beside it.
+    Failed,
     /// Stopped, or not started, because a signal asked the run to stop.
     Interrupted,
 }
 
-impl std::fmt::Display for CaseStatus {
-    /// "complete", "skipped (complete)" or "failed: <reason>", as summaries write it.
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+impl CaseStatus {
+    /// "complete", "failed" or "interrupted": the `status` column of the summaries.
+    pub fn as_str(self) -> &'static str {
         match self {
-            CaseStatus::Complete => f.write_str("complete"),
-            CaseStatus::Skipped => f.write_str("skipped (complete)"),
-            CaseStatus::Failed(reason) => write!(f, "failed: {reason}"),
-            CaseStatus::Interrupted => f.write_str("interrupted"),
+            CaseStatus::Complete => "complete",
+            CaseStatus::Failed => "failed",
+            CaseStatus::Interrupted => "interrupted",
         }
     }
 }
 
-impl serde::Serialize for CaseStatus {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.collect_str(self)
+impl std::fmt::Display for CaseStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// What this run did with a case.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunKind {
+    /// Run now (to its end, a failure or an interruption).
+    Computed,
+    /// Complete from an earlier run with the same resolved config, outputs verified; not rerun.
+    Reused,
+    /// Not started: the run was interrupted first (the directory is as an earlier run left it).
+    NotStarted,
+}
+
+impl RunKind {
+    /// "computed", "reused" or "not_started": the `run` column of the summaries.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RunKind::Computed => "computed",
+            RunKind::Reused => "reused",
+            RunKind::NotStarted => "not_started",
+        }
     }
 }
 
 /// How one case ended.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct CaseOutcome {
     pub id: String,
     pub params: Vec<(String, String)>,
     pub status: CaseStatus,
+    /// Why it failed (status `failed` only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    pub run: RunKind,
     pub wall_seconds: f64,
+    #[serde(default)]
     pub summary: Option<CaseSummary>,
     /// With `outputs.figures`: "written" or why not.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -76,7 +106,17 @@ pub struct CaseOutcome {
 
 impl CaseOutcome {
     pub fn failed(&self) -> bool {
-        matches!(self.status, CaseStatus::Failed(_))
+        self.status == CaseStatus::Failed
+    }
+
+    /// The progress line's word for it: "complete", "skipped (complete)" (reused),
+    /// "failed: <reason>" or "interrupted".
+    pub fn describe(&self) -> String {
+        match (self.status, self.run, &self.reason) {
+            (CaseStatus::Complete, RunKind::Reused, _) => "skipped (complete)".into(),
+            (CaseStatus::Failed, _, Some(reason)) => format!("failed: {reason}"),
+            (status, _, _) => status.to_string(),
+        }
     }
 }
 
@@ -129,6 +169,11 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
     });
     progress.finish();
     sweep::write_summaries(&dir, &outcomes)?;
+    // The cases in one xarray-ready file: cheap (each case's energies only); a failure
+    // here loses nothing (`tsim collect` writes it again).
+    if let Err(e) = collect::collect_outcomes(&dir, &outcomes) {
+        eprintln!("warning: {e}");
+    }
     Ok(outcomes)
 }
 
@@ -150,7 +195,9 @@ fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
     Some(CaseOutcome {
         id: case.id.clone(),
         params: case.params.clone(),
-        status: CaseStatus::Skipped,
+        status: CaseStatus::Complete,
+        reason: None,
+        run: RunKind::Reused,
         wall_seconds: outcome["wall_seconds"].as_f64().unwrap_or_default(),
         summary: serde_json::from_value(outcome["summary"].clone()).ok(),
         figures: outcome["figures"].as_str().map(str::to_string),
@@ -161,7 +208,7 @@ fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
 fn run_one(case: &Case, dir: &Path, force: bool, background: bool, progress: &Progress) -> CaseOutcome {
     if !force {
         if let Some(done) = already_complete(case, dir) {
-            progress.done(&case.id, &done.status.to_string(), 0.0);
+            progress.done(&case.id, &done.describe(), 0.0);
             return done;
         }
     }
@@ -171,6 +218,8 @@ fn run_one(case: &Case, dir: &Path, force: bool, background: bool, progress: &Pr
             id: case.id.clone(),
             params: case.params.clone(),
             status: CaseStatus::Interrupted,
+            reason: None,
+            run: RunKind::NotStarted,
             wall_seconds: 0.0,
             summary: None,
             figures: None,
@@ -180,10 +229,10 @@ fn run_one(case: &Case, dir: &Path, force: bool, background: bool, progress: &Pr
     let start = Instant::now();
     let result = execute(case, dir, background, progress);
     let wall_seconds = start.elapsed().as_secs_f64();
-    let (status, summary) = match result {
-        Ok(s) => (CaseStatus::Complete, Some(s)),
-        Err(_) if interrupted() => (CaseStatus::Interrupted, None),
-        Err(reason) => (CaseStatus::Failed(reason), None),
+    let (status, reason, summary) = match result {
+        Ok(s) => (CaseStatus::Complete, None, Some(s)),
+        Err(_) if interrupted() => (CaseStatus::Interrupted, None, None),
+        Err(reason) => (CaseStatus::Failed, Some(reason), None),
     };
     let figures = (case.config.outputs.figures && summary.is_some()).then(|| draw_figures(dir));
     let mut outcome = CaseOutcome {
@@ -195,6 +244,8 @@ fn run_one(case: &Case, dir: &Path, force: bool, background: bool, progress: &Pr
             Default::default()
         },
         status,
+        reason,
+        run: RunKind::Computed,
         wall_seconds,
         summary,
         figures,
@@ -204,9 +255,10 @@ fn run_one(case: &Case, dir: &Path, force: bool, background: bool, progress: &Pr
         .map_err(std::io::Error::other)
         .and_then(|text| files::write_atomic(&dir.join("outcome.json"), &text));
     if let Err(e) = written {
-        outcome.status = CaseStatus::Failed(format!("cannot write outcome.json: {e}"));
+        outcome.status = CaseStatus::Failed;
+        outcome.reason = Some(format!("cannot write outcome.json: {e}"));
     }
-    progress.done(&case.id, &outcome.status.to_string(), wall_seconds);
+    progress.done(&case.id, &outcome.describe(), wall_seconds);
     outcome
 }
 
@@ -237,7 +289,7 @@ fn execute(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Re
     let _ = std::fs::remove_file(dir.join("outcome.json"));
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     std::fs::write(dir.join("case.yaml"), &case.yaml).map_err(|e| format!("cannot write case.yaml: {e}"))?;
-    let files = crate::output::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml, background)
+    let files = crate::output::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml, &case.attrs, background)
         .map_err(|e| format!("cannot create outputs: {e}"))?;
     let mut recorder = Recorders(vec![Box::new(interrupt::Check), Box::new(progress.case_bar(&case.id)), files]);
     let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_case(&case.config, &mut recorder)));

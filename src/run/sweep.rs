@@ -3,6 +3,7 @@
 
 use super::CaseOutcome;
 use crate::config::{self, bytes_text, CaseConfig, ConfigError, Estimate, LimitSpec, Limits, Part, SweepAxis, TableError, ValueError};
+use crate::output::h5::ParamValue;
 use serde_json::Value;
 use std::collections::HashSet;
 use std::path::Path;
@@ -19,6 +20,36 @@ pub struct Case {
     pub yaml: String,
     /// Its estimated output and peak memory.
     pub estimate: Estimate,
+    /// Its sweep parameters as result.h5's root attributes: `sweep.<axis>` (the label, a
+    /// number when every label of the axis is one) and `set.<dotted path>` (each value set).
+    pub attrs: Vec<(String, ParamValue)>,
+}
+
+/// Whether an axis' labels are all numbers: then its coordinate is numeric (in result.h5's
+/// attributes and `tsim collect`).
+pub fn numeric_labels<'a>(mut labels: impl Iterator<Item = &'a str>) -> bool {
+    labels.all(|l| l.parse::<f64>().is_ok_and(f64::is_finite))
+}
+
+/// A label as a coordinate value: a number on a numeric axis, else the text.
+pub fn label_value(label: &str, numeric: bool) -> ParamValue {
+    match label.parse::<f64>() {
+        Ok(x) if numeric => ParamValue::Number(x),
+        _ => ParamValue::Text(label.into()),
+    }
+}
+
+/// A value a sweep sets, as an attribute: numbers stay numbers, lists of numbers arrays,
+/// strings text, anything else its JSON text.
+fn json_value(v: &Value) -> ParamValue {
+    match v {
+        Value::Number(n) => n.as_f64().map_or_else(|| ParamValue::Text(n.to_string()), ParamValue::Number),
+        Value::String(s) => ParamValue::Text(s.clone()),
+        Value::Array(a) if !a.is_empty() && a.iter().all(Value::is_number) => {
+            ParamValue::Numbers(a.iter().filter_map(Value::as_f64).collect())
+        }
+        other => ParamValue::Text(other.to_string()),
+    }
 }
 
 fn set_path(v: &mut Value, path: &str, new: Value) -> Result<(), String> {
@@ -110,6 +141,10 @@ pub fn expand(text: &str, origin: &str, allow_large: bool) -> Result<Expanded, C
             message: format!("the axes' cross product has {total} cases; at most {MAX_CASES} are allowed in one run"),
         }]));
     }
+    let numeric: Vec<bool> = axes
+        .iter()
+        .map(|a| numeric_labels(a.values.iter().map(|v| v.label.as_str())))
+        .collect();
     let mut cases = Vec::with_capacity(total);
     let mut seen = HashSet::new();
     // The largest output part of any case: (case index, its chosen values, the part).
@@ -141,12 +176,26 @@ pub fn expand(text: &str, origin: &str, allow_large: bool) -> Result<Expanded, C
                 if largest.as_ref().is_none_or(|(_, _, p)| estimate.output_part.bytes > p.bytes) {
                     largest = Some((cases.len(), chosen.clone(), estimate.output_part.clone()));
                 }
+                let mut attrs: Vec<(String, ParamValue)> = params
+                    .iter()
+                    .zip(&numeric)
+                    .map(|((axis, label), &numeric)| (format!("sweep.{axis}"), label_value(label, numeric)))
+                    .collect();
+                for (a, &i) in chosen.iter().enumerate() {
+                    for (path, v) in &axes[a].values[i].set {
+                        // Two axes setting one path: the later wins, as in the case config.
+                        let name = format!("set.{path}");
+                        attrs.retain(|(n, _)| *n != name);
+                        attrs.push((name, json_value(v)));
+                    }
+                }
                 cases.push(Case {
                     id,
                     params,
                     config,
                     yaml,
                     estimate,
+                    attrs,
                 });
             }
             Err(case_errors) => {
@@ -350,42 +399,102 @@ fn inside(outer: &str, inner: &str) -> bool {
         .is_some_and(|rest| rest.is_empty() || rest.starts_with(['.', '[']))
 }
 
-const COLUMNS: [&str; 13] = [
-    "status",
-    "wall_seconds",
-    "equilibrium_residual",
-    "omega2_min",
-    "omega2_max",
-    "rayleigh_alpha",
-    "rayleigh_beta",
-    "fold_height_ratio",
-    "deploy_shape_error",
-    "deploy_mirror_shape_error",
-    "deploy_ke_final_over_max",
-    "max_cable_stretch",
-    "max_strut_compression",
+/// One value of a summary column.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Cell {
+    Text(String),
+    /// NaN when the case has no such figure (written empty in summary.csv).
+    Number(f64),
+}
+
+/// The per-case columns of `summary.csv` after `case_id` and the swept axes, with their
+/// units (docs/outputs.md documents each): (name, unit).
+pub const COLUMNS: [(&str, &str); 29] = [
+    ("status", ""),
+    ("run", ""),
+    ("reason", ""),
+    ("wall_s", "s"),
+    ("formfinding_s", "s"),
+    ("static_s", "s"),
+    ("eigen_s", "s"),
+    ("free_vibration_s", "s"),
+    ("folding_s", "s"),
+    ("deployment_s", "s"),
+    ("equilibrium_residual_n", "N"),
+    ("f1_hz", "Hz"),
+    ("omega2_min_rad2_s2", "rad2 s-2"),
+    ("omega2_max_rad2_s2", "rad2 s-2"),
+    ("rayleigh_alpha_per_s", "s-1"),
+    ("rayleigh_beta_s", "s"),
+    ("free_vibration_peak_kinetic_j", "J"),
+    ("free_vibration_peak_tension_n", "N"),
+    ("free_vibration_peak_compression_n", "N"),
+    ("fold_height_ratio", "1"),
+    ("deploy_peak_kinetic_j", "J"),
+    ("deploy_ke_final_over_max", "1"),
+    ("deploy_peak_tension_n", "N"),
+    ("deploy_peak_compression_n", "N"),
+    ("deploy_max_strut_compression_n", "N"),
+    ("deploy_max_cable_stretch", "1"),
+    ("deploy_shape_error", "1"),
+    ("deploy_mirror_shape_error", "1"),
+    ("deploy_settle_time_s", "s"),
 ];
 
-fn figures(o: &CaseOutcome) -> Vec<String> {
+/// The values of [`COLUMNS`] for one case, in that order.
+pub fn cells(o: &CaseOutcome) -> Vec<Cell> {
     let s = o.summary.as_ref();
-    let f = |v: Option<f64>| v.map(|x| format!("{x:.6e}")).unwrap_or_default();
+    let f = |v: Option<f64>| Cell::Number(v.unwrap_or(f64::NAN));
     let eig = s.and_then(|s| s.eigen.as_ref());
+    let free = s.and_then(|s| s.free_vibration.as_ref());
     let dep = s.and_then(|s| s.deployment.as_ref());
+    // A model given with rest lengths solves its equilibrium in place of form-finding.
+    let stage = |name: &str| s.and_then(|s| s.stage_seconds.get(name).copied());
+    let shaping = stage("formfinding").or_else(|| stage("equilibrium"));
     vec![
-        o.status.to_string().replace(['"', '\n'], "'"),
-        format!("{:.3}", o.wall_seconds),
+        Cell::Text(o.status.to_string()),
+        Cell::Text(o.run.as_str().into()),
+        Cell::Text(o.reason.clone().unwrap_or_default()),
+        Cell::Number(o.wall_seconds),
+        f(shaping),
+        f(stage("static")),
+        f(stage("eigen")),
+        f(stage("free_vibration")),
+        f(stage("folding")),
+        f(stage("deployment")),
         f(s.map(|s| s.substitution.residual)),
+        // f1 = √ω²/2π of the lowest mode (NaN when ω² < 0: unstable).
+        f(eig.and_then(|e| e.omega2.first()).map(|&w2| w2.sqrt() / std::f64::consts::TAU)),
         f(eig.and_then(|e| e.omega2.first().copied())),
         f(eig.and_then(|e| e.omega2.last().copied())),
         f(eig.map(|e| e.rayleigh_alpha)),
         f(eig.map(|e| e.rayleigh_beta)),
+        f(free.map(|t| t.max_kinetic)),
+        f(free.map(|t| t.max_tension)),
+        f(free.map(|t| t.max_compression)),
         f(s.and_then(|s| s.folding.as_ref()).map(|f| f.height_ratio)),
+        f(dep.map(|d| d.transient.max_kinetic)),
+        f(dep.map(|d| d.transient.final_kinetic / d.transient.max_kinetic)),
+        f(dep.map(|d| d.transient.max_tension)),
+        f(dep.map(|d| d.transient.max_compression)),
+        f(dep.map(|d| d.transient.max_strut_compression)),
+        f(dep.map(|d| d.transient.max_cable_stretch)),
         f(dep.map(|d| d.shape_error)),
         f(dep.map(|d| d.mirror_shape_error)),
-        f(dep.map(|d| d.transient.final_kinetic / d.transient.max_kinetic)),
-        f(dep.map(|d| d.transient.max_cable_stretch)),
-        f(dep.map(|d| d.transient.max_strut_compression)),
+        f(dep.and_then(|d| d.transient.settle_time)),
     ]
+}
+
+/// A cell as summary.csv writes it: numbers to 7 significant digits (wall times to the
+/// millisecond), NaN as empty, text with quotes and line breaks replaced.
+fn csv_cell(column: usize, c: &Cell) -> String {
+    match c {
+        Cell::Number(x) if x.is_nan() => String::new(),
+        // The wall times, `wall_s` to `deployment_s`.
+        Cell::Number(x) if (3..=9).contains(&column) => format!("{x:.3}"),
+        Cell::Number(x) => format!("{x:.6e}"),
+        Cell::Text(t) => t.replace(['"', '\n'], "'"),
+    }
 }
 
 /// `summary.csv` (one row per case: id, swept labels, status, wall time, key figures) and
@@ -397,7 +506,7 @@ pub fn write_summaries(dir: &Path, outcomes: &[CaseOutcome]) -> std::io::Result<
         .map(|o| o.params.iter().map(|(a, _)| a.as_str()).collect())
         .unwrap_or_default();
     let mut csv = String::from("case_id");
-    for a in axes.iter().copied().chain(COLUMNS) {
+    for a in axes.iter().copied().chain(COLUMNS.iter().map(|(name, _)| *name)) {
         csv.push(',');
         csv.push_str(a);
     }
@@ -405,7 +514,7 @@ pub fn write_summaries(dir: &Path, outcomes: &[CaseOutcome]) -> std::io::Result<
     for o in outcomes {
         let row: Vec<String> = std::iter::once(o.id.clone())
             .chain(o.params.iter().map(|(_, l)| l.clone()))
-            .chain(figures(o))
+            .chain(cells(o).iter().enumerate().map(|(k, c)| csv_cell(k, c)))
             .collect();
         csv.push_str(
             &row.iter()

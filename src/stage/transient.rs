@@ -8,7 +8,7 @@ use super::EquilibriumSummary;
 use super::{record_error, solve_error, Analysis, Settings};
 use crate::dynamics::{Damping, DampingTangent, Energy, FreeLoads, Integrator, Loads, Newmark, NewmarkParams, Rayleigh};
 use crate::error::{Error, Result};
-use crate::model::{MemberKind, Model};
+use crate::model::{shape_error, MemberKind, Model};
 use crate::record::{Recorder, Stage};
 use crate::structure::{State, Structure};
 use crate::tsm::{Assembly, DofMap};
@@ -88,6 +88,17 @@ pub struct TransientSummary {
     pub max_cable_stretch: f64,
     /// Largest strut compression over the stage [N] (positive number).
     pub max_strut_compression: f64,
+    /// Largest member tension over the stage, every step [N].
+    #[serde(default)]
+    pub max_tension: f64,
+    /// Largest member compression over the stage, every step [N] (positive number).
+    #[serde(default)]
+    pub max_compression: f64,
+    /// With a reference shape (deployment: the pre-fold equilibrium): the first stage time
+    /// from which the shape error (RMS distance to the reference over its height, every
+    /// step) stays ≤ 1 % to the stage's end [s]; `None` when it ends above 1 %.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub settle_time: Option<f64>,
     /// Wall time of the stage, recording included [s].
     pub wall_seconds: f64,
     #[serde(flatten)]
@@ -110,6 +121,8 @@ impl TransientSummary {
         *mechanical = now;
         let asm = &nm.asm;
         for ((mem, st), l0) in asm.model.members.iter().zip(&asm.states).zip(&asm.elements.rest) {
+            self.max_tension = self.max_tension.max(st.force);
+            self.max_compression = self.max_compression.max(-st.force);
             match mem.kind {
                 MemberKind::Cable => self.max_cable_stretch = self.max_cable_stretch.max(st.length / l0),
                 MemberKind::Strut => self.max_strut_compression = self.max_strut_compression.max(-st.force),
@@ -142,6 +155,25 @@ impl Analysis for Transient {
         state: State,
         settings: &Settings,
         recorder: &mut dyn Recorder,
+    ) -> Result<(State, TransientSummary)> {
+        self.run_towards(structure, state, settings, recorder, None)
+    }
+}
+
+/// Shape error at or below which a deployment counts as in shape (1 %).
+pub const SETTLE_TOLERANCE: f64 = 0.01;
+
+impl Transient {
+    /// [`Analysis::run`], and with a `reference` shape the time from which the shape
+    /// error stays within [`SETTLE_TOLERANCE`] (`TransientSummary::settle_time`), checked
+    /// at every step (one pass over the nodes per step).
+    pub fn run_towards(
+        &self,
+        structure: &Structure,
+        state: State,
+        settings: &Settings,
+        recorder: &mut dyn Recorder,
+        reference: Option<&[Vector3<f64>]>,
     ) -> Result<(State, TransientSummary)> {
         let name = self.stage.name();
         let model = &structure.model;
@@ -196,6 +228,15 @@ impl Analysis for Transient {
             frames.record_motion(recorder, motion, step, &applied).map_err(record_error(name))
         };
         record(&nm, 0, 0.0, recorder)?;
+        // The time the shape error last came (and stayed) within the tolerance.
+        let mut settled_since = None;
+        let mut track = |x: &[Vector3<f64>], time: f64| {
+            if let Some(reference) = reference {
+                let within = shape_error(x, reference).0 <= SETTLE_TOLERANCE;
+                settled_since = if within { settled_since.or(Some(time)) } else { None };
+            }
+        };
+        track(&nm.asm.x, 0.0);
         let mut mechanical = mechanical_energy(&nm.energy, load_end.1);
         for step in 1..=steps {
             let time = step as f64 * dt;
@@ -214,6 +255,7 @@ impl Analysis for Transient {
             summary.newton_iterations += report.iterations;
             summary.factorizations += report.factorizations;
             summary.add_step(&nm, time, load_end, dt, &mut mechanical);
+            track(&nm.asm.x, time);
             if step % settings.every == 0 || step == steps {
                 record(&nm, step, load_time, recorder)?;
             }
@@ -221,6 +263,7 @@ impl Analysis for Transient {
         recorder.end_stage(self.stage).map_err(record_error(name))?;
         summary.equilibrium = frames.check.into();
         summary.final_kinetic = nm.energy.kinetic;
+        summary.settle_time = settled_since;
         summary.wall_seconds = started.elapsed().as_secs_f64();
         Ok((final_state(&nm, &dofs), summary))
     }

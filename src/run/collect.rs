@@ -1,0 +1,159 @@
+//! `tsim collect RUN_DIR`: the cases of a run directory (as its `summary.json` lists them)
+//! in one xarray-ready file, `RUN_DIR/collected.h5` (see `output::collected`). A case that
+//! is not complete, or whose result.h5 is gone or unreadable, keeps its row (NaN values,
+//! its status) and is listed as missing.
+
+use super::sweep::{cells, label_value, numeric_labels, Cell, COLUMNS};
+use super::{CaseOutcome, CaseStatus};
+use crate::output::collected::{read_history, write, Collection, Column, History, Variable};
+use crate::output::h5::ParamValue;
+use std::path::{Path, PathBuf};
+
+/// The stages whose energy histories are collected.
+const STAGES: [&str; 4] = ["static", "free_vibration", "folding", "deployment"];
+
+/// What `collect` wrote.
+#[derive(Clone, Debug)]
+pub struct Collected {
+    pub path: PathBuf,
+    pub cases: usize,
+    /// (case id, why) of each case without complete results.
+    pub missing: Vec<(String, String)>,
+}
+
+/// Collects `dir` (a run directory holding `summary.json`) into `dir/collected.h5`.
+/// Err: the directory holds no readable `summary.json` (nothing is written).
+pub fn collect(dir: &Path) -> Result<Collected, String> {
+    let summary = dir.join("summary.json");
+    let text =
+        std::fs::read_to_string(&summary).map_err(|e| format!("{}: {e} (a run directory of `tsim run` holds one)", summary.display()))?;
+    let outcomes: Vec<CaseOutcome> = serde_json::from_str(&text).map_err(|e| {
+        format!(
+            "{}: {e} (written by an older tsim? rerun `tsim run` on its config)",
+            summary.display()
+        )
+    })?;
+    collect_outcomes(dir, &outcomes)
+}
+
+/// Collects the cases `outcomes` of the run directory `dir`.
+pub fn collect_outcomes(dir: &Path, outcomes: &[CaseOutcome]) -> Result<Collected, String> {
+    let mut c = Collection {
+        ids: outcomes.iter().map(|o| o.id.clone()).collect(),
+        ..Default::default()
+    };
+    // The swept axes as coordinates: numbers when every label of the axis is one.
+    let axes: Vec<String> = outcomes
+        .first()
+        .map(|o| o.params.iter().map(|(a, _)| a.clone()).collect())
+        .unwrap_or_default();
+    for (k, axis) in axes.iter().enumerate() {
+        let labels: Vec<&str> = outcomes.iter().map(|o| o.params.get(k).map_or("", |(_, l)| l.as_str())).collect();
+        let numeric = numeric_labels(labels.iter().copied());
+        let values = labels.iter().map(|l| label_value(l, numeric));
+        let values = if numeric {
+            Column::Numbers(values.map(|v| if let ParamValue::Number(x) = v { x } else { f64::NAN }).collect())
+        } else {
+            Column::Texts(labels.iter().map(|l| l.to_string()).collect())
+        };
+        c.coords.push(Variable {
+            name: axis.clone(),
+            units: "1".into(),
+            long_name: format!("swept axis `{axis}` (its value labels)"),
+            values,
+        });
+    }
+    // The scalars of summary.csv.
+    let rows: Vec<Vec<Cell>> = outcomes.iter().map(cells).collect();
+    for (k, (name, unit)) in COLUMNS.iter().enumerate() {
+        let values = match rows.first().map(|r| &r[k]) {
+            Some(Cell::Text(_)) => Column::Texts(
+                rows.iter()
+                    .map(|r| match &r[k] {
+                        Cell::Text(t) => t.clone(),
+                        Cell::Number(x) => x.to_string(),
+                    })
+                    .collect(),
+            ),
+            _ => Column::Numbers(
+                rows.iter()
+                    .map(|r| match r[k] {
+                        Cell::Number(x) => x,
+                        Cell::Text(_) => f64::NAN,
+                    })
+                    .collect(),
+            ),
+        };
+        c.vars.push(Variable {
+            name: name.to_string(),
+            units: if unit.is_empty() { "1".into() } else { unit.to_string() },
+            long_name: format!("summary.csv column `{name}` (docs/outputs.md)"),
+            values,
+        });
+    }
+    // The energy histories of the complete cases.
+    let mut missing = Vec::new();
+    let mut histories: Vec<History> = STAGES
+        .iter()
+        .map(|s| History {
+            stage: s.to_string(),
+            time_units: "s".into(),
+            ..Default::default()
+        })
+        .collect();
+    for o in outcomes {
+        let mut rows = vec![(Vec::new(), Vec::new(), Vec::new()); STAGES.len()];
+        let why = match (o.status, &o.reason) {
+            (CaseStatus::Complete, _) => None,
+            (CaseStatus::Failed, Some(reason)) => Some(format!("failed: {reason}")),
+            (status, _) => Some(status.to_string()),
+        };
+        if let Some(why) = why {
+            missing.push((o.id.clone(), why));
+        } else {
+            let path = dir.join(&o.id).join("result.h5");
+            let read: Result<Vec<_>, _> = STAGES.iter().map(|s| read_history(&path, s)).collect();
+            match read {
+                Ok(read) => {
+                    for ((h, row), (time, kinetic, strain, units)) in histories.iter_mut().zip(&mut rows).zip(read) {
+                        if !time.is_empty() {
+                            h.time_units = units;
+                        }
+                        *row = (time, kinetic, strain);
+                    }
+                }
+                Err(e) if !path.exists() => missing.push((o.id.clone(), format!("{} is missing ({e})", path.display()))),
+                Err(e) => missing.push((o.id.clone(), format!("{}: {e}", path.display()))),
+            }
+        }
+        for (h, (time, kinetic, strain)) in histories.iter_mut().zip(rows) {
+            h.time.push(time);
+            h.kinetic.push(kinetic);
+            h.strain.push(strain);
+        }
+    }
+    c.histories = histories;
+    c.attrs = vec![
+        ("tsim_version".into(), env!("CARGO_PKG_VERSION").into()),
+        ("run_dir".into(), dir.display().to_string()),
+        ("units".into(), "SI (m, N, kg, s)".into()),
+        ("sweep_axes".into(), axes.join(" ")),
+        (
+            "missing".into(),
+            missing
+                .iter()
+                .map(|(id, why)| format!("{id}: {why}"))
+                .collect::<Vec<_>>()
+                .join("\n"),
+        ),
+    ];
+    let path = dir.join("collected.h5");
+    let partial = dir.join(".collected.h5.partial");
+    write(&partial, &c).map_err(|e| format!("cannot write {}: {e}", partial.display()))?;
+    std::fs::rename(&partial, &path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    Ok(Collected {
+        path,
+        cases: outcomes.len(),
+        missing,
+    })
+}
