@@ -291,16 +291,20 @@ fn conflicting_keys_are_named_at_their_line() {
         );
     }
 
-    // Set by a sweep value: that value's line.
-    for (to, section) in [
-        ("{ eigen.rayleigh.auto_modes: z }", "eigen.rayleigh"),
-        ("{ folding.prescribe: [{ group: top, axis: z }] }", "folding.prescribe"),
+    // Set by a sweep value: that value's line, under the path it sets.
+    for (to, set, section) in [
+        ("{ eigen.rayleigh.auto_modes: z }", "eigen.rayleigh.auto_modes", "eigen.rayleigh"),
+        (
+            "{ folding.prescribe: [{ group: top, axis: z }] }",
+            "folding.prescribe",
+            "folding.prescribe",
+        ),
     ] {
         let text = good.replace("{ eigen.rayleigh.ratios: [0.05, 0.05] }", to);
         let (out, path) = bad_config(&text);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
-            err.starts_with(&format!("error: {}: `sweep.axes[1].values[0].set", at(&path, &text, to)))
+            err.starts_with(&format!("error: {}: `{set}`: ", at(&path, &text, to)))
                 && err.contains(&format!("`{section}`: "))
                 && err.contains("zeta=0.05")
                 && err.lines().count() == 1,
@@ -602,4 +606,33 @@ fn limits_stay_out_of_case_yaml() {
     let low = good.replace("masses: paper", "masses: paper\nlimits: { max_steps: 50 }");
     let (out, _) = bad_config(&low);
     assert!(String::from_utf8_lossy(&out.stderr).contains("at most 5e1 are allowed"));
+}
+
+/// A value of the wrong type set by a sweep axis is reported at that value's line, under
+/// the dotted path it sets, in plain words.
+#[test]
+fn a_bad_type_in_a_sweep_value_names_its_path_and_line() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good.replace("{ eigen.rayleigh.ratios: [0.05, 0.05] }", "{ eigen.rayleigh.ratios: \"x\" }");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!("error: {}: `eigen.rayleigh.ratios`", at(&path, &text, "ratios: \"x\"")))
+            && err.contains("zeta=0.05")
+            && err.contains("expected")
+            && !err.contains("invalid type")
+            && err.lines().count() == 1,
+        "{err}"
+    );
+    // Two settings in one value: the one that breaks is named.
+    let text = good.replace(
+        "{ substitution.cable: nylon }",
+        "{ substitution.cable: nylon, folding.steps: many }",
+    );
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!("error: {}: `folding.steps`", at(&path, &text, "steps: many"))),
+        "{err}"
+    );
 }
