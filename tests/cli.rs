@@ -132,10 +132,7 @@ fn bad_configs_fail_fast_with_location() {
     let text = good.replace("masses: paper", "masses: paper\nmassess: 3");
     let (out, path) = bad_config(&text);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains(path.to_str().unwrap()) && err.contains("massess") && err.contains("line 8"),
-        "{err}"
-    );
+    assert!(err.contains(&format!("{}:8:", path.display())) && err.contains("massess"), "{err}");
 
     let text = good.replace("duration: 0.1\n", "duration: 0.1\n  dt: -0.001\n");
     let (out, path) = bad_config(&text);
@@ -170,16 +167,14 @@ fn bad_configs_fail_fast_with_location() {
         "{err}"
     );
 
-    let (out, _) = bad_config(&good.replace("name: small", "name: small\nmodel: [unclosed"));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("line"));
+    let (out, path) = bad_config(&good.replace("name: small", "name: small\nmodel: [unclosed"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains(&format!("{}:", path.display())));
 }
 
-/// `line N` of the first line of `text` containing `needle`, as the YAML parser says it.
+/// `:N:` of the first line of `text` containing `needle`, the line of a YAML parser error
+/// (then its column).
 fn parser_line(text: &str, needle: &str) -> String {
-    format!(
-        "line {}",
-        text.lines().position(|l| l.contains(needle)).expect("needle in text") + 1
-    )
+    format!(":{}:", text.lines().position(|l| l.contains(needle)).expect("needle in text") + 1)
 }
 
 #[test]
@@ -285,7 +280,7 @@ fn conflicting_keys_are_named_at_their_line() {
         let (out, path) = bad_config(&text);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
-            err.starts_with(&format!("error: {}: {}", path.display(), parser_line(&text, to)))
+            err.starts_with(&format!("error: {}{}", path.display(), parser_line(&text, to)))
                 && err.contains(&format!("`{section}`: {problem}")),
             "{err}"
         );
@@ -635,4 +630,91 @@ fn a_bad_type_in_a_sweep_value_names_its_path_and_line() {
         err.starts_with(&format!("error: {}: `folding.steps`", at(&path, &text, "steps: many"))),
         "{err}"
     );
+}
+
+/// YAML errors read as `file:line:col: what is wrong`, in plain words: no parser
+/// internals (`invalid u64`, `DuplicateKeyPolicy`, `--> <input>`), no doubled prefix.
+#[test]
+fn yaml_errors_are_plain_words_at_file_line_col() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let plain = |err: &str| {
+        !err.contains("<input>")
+            && !err.contains("invalid u64")
+            && !err.contains("DuplicateKeyPolicy")
+            && !err.contains("Options")
+            && err.matches("error:").count() == 1
+    };
+    // A missing comma in a flow mapping.
+    let text = good.replace("struts: 3, stages: 1,", "struts: 3 stages: 1,");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let col = text.lines().nth(3).unwrap().find("3 stages").unwrap() + 1;
+    assert!(
+        err.starts_with(&format!("error: {}:4:{col}: ", path.display())) && err.contains("comma") && plain(&err),
+        "{err}"
+    );
+    // A key given twice: both lines, and the fix.
+    let text = good.replace("masses: paper", "masses: paper\nmasses: none");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!("error: {}:8:1: ", path.display()))
+            && err.contains("key `masses` appears twice (lines 7 and 8); keep one")
+            && plain(&err),
+        "{err}"
+    );
+    // An unknown key: the closest known one.
+    let text = good.replace("masses: paper", "masses: paper\nmassess: 3");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!(
+            "error: {}:8:1: unknown key `massess` (did you mean `masses`?)",
+            path.display()
+        )) && plain(&err),
+        "{err}"
+    );
+}
+
+/// Names that are not known get the closest known one: keys, materials, node groups, node ids.
+#[test]
+fn unknown_names_suggest_the_closest() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    for (from, to, needle, suggestion) in [
+        ("strut: aluminium", "strut: aluminum", "aluminum", "`aluminium`"),
+        (
+            "groups: [top], force: [0.0",
+            "groups: [tops], force: [0.0",
+            "groups: [tops]",
+            "`top`",
+        ),
+        ("radius: 2.0,", "radius: 2.0, strut_lenght: 5.0,", "strut_lenght", "`strut_length`"),
+    ] {
+        let text = good.replace(from, to);
+        let (out, path) = bad_config(&text);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&format!("{}:", at(&path, &text, needle))) && err.contains(&format!("did you mean {suggestion}?")),
+            "{err}"
+        );
+    }
+    let text = "name: m
+model:
+  nodes:
+    - { id: base1, xyz: [0.0, 0.0, 0.0], fix: [x, y, z] }
+    - { id: tip, xyz: [1.0, 0.0, 0.0] }
+  members:
+    - { id: c1, nodes: [base1, tpi], kind: cable, restlength: 1.0 }
+substitution: { strut: aluminium, cable: rubber }
+";
+    let (out, path) = bad_config(text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&format!("{}:", at(&path, text, "restlength"))) && err.contains("did you mean `rest_length`?"),
+        "{err}"
+    );
+    let text = text.replace("restlength", "rest_length");
+    let (out, _) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("unknown node `tpi` (did you mean `tip`?)"), "{err}");
 }
