@@ -718,3 +718,56 @@ substitution: { strut: aluminium, cable: rubber }
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("unknown node `tpi` (did you mean `tip`?)"), "{err}");
 }
+
+/// A Newton failure names its stage (`equilibrium` for a model given with rest lengths,
+/// not form-finding), the criterion that failed against its tolerance, and the settings
+/// to change: the tolerances, `newton.max_iterations`, and for a stepped stage smaller
+/// steps (its `dt` or `steps`, its `max_cuts`).
+#[test]
+fn newton_failures_name_the_criterion_and_the_settings() {
+    let text = "name: eq
+model:
+  nodes:
+    - { id: a, xyz: [0.0, 0.0, 0.0], fix: [x, y, z] }
+    - { id: b, xyz: [0.7, 0.3, 0.0], fix: [y, z] }
+    - { id: c, xyz: [2.0, 0.0, 0.0], fix: [x, y, z] }
+  members:
+    - { id: c1, nodes: [a, b], kind: cable, rest_length: 0.5 }
+    - { id: c2, nodes: [b, c], kind: cable, rest_length: 0.5 }
+substitution: { strut: aluminium, cable: rubber }
+newton: { max_iterations: 1 }
+";
+    let dir = scratch("newton-eq");
+    let path = dir.join("eq.yaml");
+    std::fs::write(&path, text).unwrap();
+    let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("eq/summary.json")).unwrap()).unwrap();
+    let s = v[0]["status"].as_str().unwrap();
+    assert!(
+        s.starts_with("failed: equilibrium: ")
+            && s.contains("force residual")
+            && s.contains("tolerance")
+            && s.contains("`newton.max_iterations`")
+            && s.contains("node `b` direction x"),
+        "{s}"
+    );
+
+    // A tower's form-finding at one iteration: the criterion that failed, its tolerance.
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good.split("sweep:").next().unwrap().to_string() + "newton: { max_iterations: 1 }\n";
+    let dir = scratch("newton-ff");
+    let path = dir.join("ff.yaml");
+    std::fs::write(&path, text).unwrap();
+    let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("small/summary.json")).unwrap()).unwrap();
+    let s = v[0]["status"].as_str().unwrap();
+    assert!(
+        s.starts_with("failed: form-finding: ")
+            && (s.contains("force residual") || s.contains("displacement increment"))
+            && s.contains("exceeds its tolerance")
+            && s.contains("`newton.max_iterations`"),
+        "{s}"
+    );
+}
