@@ -771,3 +771,20 @@ newton: { max_iterations: 1 }
         "{s}"
     );
 }
+
+/// `struts: 2` is refused as such, before any model building could report its ring
+/// members as duplicates.
+#[test]
+fn a_tower_of_two_struts_is_refused_plainly() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good.replace("struts: 3,", "struts: 2,");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!("error: {}: `model.tower`", at(&path, &text, "struts: 2")))
+            && err.contains("at least 3 struts")
+            && !err.contains("join the same nodes")
+            && err.lines().count() == 1,
+        "{err}"
+    );
+}

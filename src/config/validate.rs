@@ -307,11 +307,17 @@ fn unknown_material(name: &str, lib: &std::collections::BTreeMap<String, Materia
 pub const MAX_NODES: usize = 1_000_000;
 
 fn check_tower(t: &TowerSpec, p: &mut Problems) {
-    if t.struts < 3 || t.stages < 1 {
+    if t.struts < 3 {
         p.add(
             "model.tower",
-            format!("struts = {}, stages = {}; need struts ≥ 3 and stages ≥ 1", t.struts, t.stages),
+            format!(
+                "struts = {}: a tower needs at least 3 struts per stage (a stage of 2 has no ring to close)",
+                t.struts
+            ),
         );
+    }
+    if t.stages < 1 {
+        p.add("model.tower", format!("stages = {}: a tower needs at least 1 stage", t.stages));
     }
     let nodes = t.struts.saturating_mul(t.stages).saturating_mul(2);
     if nodes > MAX_NODES {
