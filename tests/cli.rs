@@ -64,6 +64,12 @@ fn sweep_runs_in_stable_order_and_resumes() {
 
     let again = tsim(&["run", SWEEP, "--out", out.to_str().unwrap()]);
     assert!(again.status.success());
+    // One line for the reused cases, not one per case (with `--quiet` too).
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(err.contains("4 complete cases reused") && !err.contains("skipped"), "{err}");
+    let quiet = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--quiet"]);
+    let err = String::from_utf8_lossy(&quiet.stderr);
+    assert!(err.contains("4 complete cases reused") && !err.contains("skipped"), "{err}");
     assert!(
         outcomes(&out).iter().all(|o| o["status"] == "skipped (complete)"),
         "{:?}",
@@ -72,6 +78,23 @@ fn sweep_runs_in_stable_order_and_resumes() {
     let forced = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--force"]);
     assert!(forced.status.success());
     assert!(outcomes(&out).iter().all(|o| o["status"] == "complete"));
+}
+
+/// `tsim --version`: the crate version and the git revision it was built from.
+#[test]
+fn version_names_the_git_revision() {
+    let out = tsim(&["--version"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    assert!(
+        text.starts_with(&format!("tsim {} (git ", env!("CARGO_PKG_VERSION"))) && text.trim_end().ends_with(')'),
+        "{text}"
+    );
+    let rev = text.split("(git ").nth(1).unwrap().trim_end().trim_end_matches(')');
+    assert!(
+        rev == "unknown" || rev.trim_end_matches("-dirty").chars().all(|c| c.is_ascii_hexdigit()),
+        "{text}"
+    );
 }
 
 /// Cases are independent and each runs sequentially inside, so the thread count must not
