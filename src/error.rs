@@ -12,7 +12,7 @@ pub enum Error {
     /// A Newton solve failed; `at` names the free DOF the error is about ("node `t3`
     /// direction z"), labelled by the stage, which knows the model (a `Box<str>`, not a
     /// `String`: it keeps `Error` small enough to return by value everywhere).
-    #[error("{stage}{}: {}", step_text(*.step, *.time), source.describe(at.as_deref()))]
+    #[error("{stage}{}: {}{}", step_text(*.step, *.time), source.describe(at.as_deref()), smaller_steps(stage, source))]
     Solve {
         stage: &'static str,
         step: Option<usize>,
@@ -32,6 +32,21 @@ pub enum Error {
     },
 }
 
+/// For a stage that takes steps and halves them when Newton fails (`max_cuts`), the
+/// settings that make its steps smaller: a failure to converge or a divergence there is
+/// often a step too large for the nonlinearity.
+fn smaller_steps(stage: &str, source: &SolveError) -> String {
+    if matches!(source, SolveError::Singular { .. }) {
+        return String::new();
+    }
+    let section = match stage {
+        "static" | "folding" => format!("more `{stage}.steps`"),
+        "free_vibration" | "deployment" => format!("a smaller `{stage}.dt`"),
+        _ => return String::new(),
+    };
+    format!("; or take smaller steps: {section}, or more halvings of a failed step (`{stage}.max_cuts`)")
+}
+
 fn step_text(step: Option<usize>, time: Option<f64>) -> String {
     match (step, time) {
         (Some(s), Some(t)) => format!(", step {s} (t = {t:.4} s)"),
@@ -41,3 +56,42 @@ fn step_text(step: Option<usize>, time: Option<f64>) -> String {
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A stepped stage's failure names the settings for smaller steps; form-finding's does not.
+    #[test]
+    fn stepped_stages_suggest_smaller_steps() {
+        let source = || SolveError::NotConverged {
+            iterations: 20,
+            residual: 1.0,
+            tolerance: 1e-3,
+            increment: 1e-12,
+            increment_tolerance: 1e-9,
+            worst_dof: 0,
+        };
+        let text = |stage| {
+            Error::Solve {
+                stage,
+                step: Some(3),
+                time: None,
+                source: source(),
+                at: None,
+            }
+            .to_string()
+        };
+        let deployment = text("deployment");
+        assert!(
+            deployment.contains("force residual 1.000e0 N exceeds its tolerance")
+                && deployment.contains("`newton.max_iterations`")
+                && deployment.contains("a smaller `deployment.dt`")
+                && deployment.contains("`deployment.max_cuts`"),
+            "{deployment}"
+        );
+        assert!(text("folding").contains("more `folding.steps`") && text("folding").contains("`folding.max_cuts`"));
+        assert!(text("static").contains("`static.max_cuts`"));
+        assert!(!text("form-finding").contains("smaller steps"));
+    }
+}

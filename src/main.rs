@@ -11,7 +11,8 @@ use tsim::run::{collect, default_jobs, install_interrupt, interrupted, load, run
 #[derive(Parser)]
 #[command(
     name = "tsim",
-    version,
+    // The git revision is read at build time by build.rs ("unknown" without git).
+    version = concat!(env!("CARGO_PKG_VERSION"), " (git ", env!("TSIM_GIT_REVISION"), ")"),
     about = "Tensegrity simulation by the tangent stiffness method: form-finding, real materials, vibration, folding, deployment",
     after_help = "Examples:\n  tsim check configs/sweep.yaml\n  tsim run configs/paper.yaml\n  tsim run configs/sweep.yaml --jobs 2 --out runs\n  tsim run configs/sweep.yaml --force   # rerun complete cases too\n  tsim run big.yaml --allow-large       # past the output, memory and step limits"
 )]

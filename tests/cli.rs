@@ -3,15 +3,31 @@
 
 use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+/// Child processes are spawned under the read lock, HDF5 files are opened in this process
+/// under the write lock. HDF5 opens files without close-on-exec, so a child spawned (by a
+/// test on another thread) while this process has a file open inherits the descriptor
+/// and its lock; the lock then outlives the read, and a later tsim fails to create that
+/// file (EAGAIN: seen once in the signal test's rerun).
+static SPAWN: std::sync::RwLock<()> = std::sync::RwLock::new(());
+
+fn spawn(cmd: &mut Command) -> std::process::Child {
+    let _guard = SPAWN.read().unwrap_or_else(|e| e.into_inner());
+    cmd.spawn().expect("tsim starts")
+}
+
+/// Opens an HDF5 file in this process with no child being spawned meanwhile.
+fn with_h5<T>(path: &Path, read: impl FnOnce(&hdf5::File) -> T) -> T {
+    let _guard = SPAWN.write().unwrap_or_else(|e| e.into_inner());
+    read(&hdf5::File::open(path).unwrap())
+}
+
 fn tsim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_tsim"))
-        .args(args)
-        .env("CI", "1")
-        .output()
-        .expect("tsim runs")
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tsim"));
+    cmd.args(args).env("CI", "1").stdout(Stdio::piped()).stderr(Stdio::piped());
+    spawn(&mut cmd).wait_with_output().expect("tsim runs")
 }
 
 fn scratch(name: &str) -> PathBuf {
@@ -68,6 +84,12 @@ fn sweep_runs_in_stable_order_and_resumes() {
     // on it must find them), and the `run` column says they were reused.
     let again = tsim(&["run", SWEEP, "--out", out.to_str().unwrap()]);
     assert!(again.status.success());
+    // One line for the reused cases, not one per case (with `--quiet` too).
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(err.contains("4 complete cases reused") && !err.contains("skipped"), "{err}");
+    let quiet = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--quiet"]);
+    let err = String::from_utf8_lossy(&quiet.stderr);
+    assert!(err.contains("4 complete cases reused") && !err.contains("skipped"), "{err}");
     assert!(
         outcomes(&out).iter().all(|o| o["status"] == "complete" && o["run"] == "reused"),
         "{:?}",
@@ -87,6 +109,23 @@ fn sweep_runs_in_stable_order_and_resumes() {
     let forced = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--force"]);
     assert!(forced.status.success());
     assert!(outcomes(&out).iter().all(|o| o["status"] == "complete" && o["run"] == "computed"));
+}
+
+/// `tsim --version`: the crate version and the git revision it was built from.
+#[test]
+fn version_names_the_git_revision() {
+    let out = tsim(&["--version"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    assert!(
+        text.starts_with(&format!("tsim {} (git ", env!("CARGO_PKG_VERSION"))) && text.trim_end().ends_with(')'),
+        "{text}"
+    );
+    let rev = text.split("(git ").nth(1).unwrap().trim_end().trim_end_matches(')');
+    assert!(
+        rev == "unknown" || rev.trim_end_matches("-dirty").chars().all(|c| c.is_ascii_hexdigit()),
+        "{text}"
+    );
 }
 
 /// Cases are independent and each runs sequentially inside, so the thread count must not
@@ -148,10 +187,7 @@ fn bad_configs_fail_fast_with_location() {
     let text = good.replace("masses: paper", "masses: paper\nmassess: 3");
     let (out, path) = bad_config(&text);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains(path.to_str().unwrap()) && err.contains("massess") && err.contains("line 8"),
-        "{err}"
-    );
+    assert!(err.contains(&format!("{}:8:", path.display())) && err.contains("massess"), "{err}");
 
     let text = good.replace("duration: 0.1\n", "duration: 0.1\n  dt: -0.001\n");
     let (out, path) = bad_config(&text);
@@ -186,16 +222,14 @@ fn bad_configs_fail_fast_with_location() {
         "{err}"
     );
 
-    let (out, _) = bad_config(&good.replace("name: small", "name: small\nmodel: [unclosed"));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("line"));
+    let (out, path) = bad_config(&good.replace("name: small", "name: small\nmodel: [unclosed"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains(&format!("{}:", path.display())));
 }
 
-/// `line N` of the first line of `text` containing `needle`, as the YAML parser says it.
+/// `:N:` of the first line of `text` containing `needle`, the line of a YAML parser error
+/// (then its column).
 fn parser_line(text: &str, needle: &str) -> String {
-    format!(
-        "line {}",
-        text.lines().position(|l| l.contains(needle)).expect("needle in text") + 1
-    )
+    format!(":{}:", text.lines().position(|l| l.contains(needle)).expect("needle in text") + 1)
 }
 
 #[test]
@@ -301,22 +335,26 @@ fn conflicting_keys_are_named_at_their_line() {
         let (out, path) = bad_config(&text);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
-            err.starts_with(&format!("error: {}: {}", path.display(), parser_line(&text, to)))
+            err.starts_with(&format!("error: {}{}", path.display(), parser_line(&text, to)))
                 && err.contains(&format!("`{section}`: {problem}")),
             "{err}"
         );
     }
 
-    // Set by a sweep value: that value's line.
-    for (to, section) in [
-        ("{ eigen.rayleigh.auto_modes: z }", "eigen.rayleigh"),
-        ("{ folding.prescribe: [{ group: top, axis: z }] }", "folding.prescribe"),
+    // Set by a sweep value: that value's line, under the path it sets.
+    for (to, set, section) in [
+        ("{ eigen.rayleigh.auto_modes: z }", "eigen.rayleigh.auto_modes", "eigen.rayleigh"),
+        (
+            "{ folding.prescribe: [{ group: top, axis: z }] }",
+            "folding.prescribe",
+            "folding.prescribe",
+        ),
     ] {
         let text = good.replace("{ eigen.rayleigh.ratios: [0.05, 0.05] }", to);
         let (out, path) = bad_config(&text);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
-            err.starts_with(&format!("error: {}: `sweep.axes[1].values[0].set", at(&path, &text, to)))
+            err.starts_with(&format!("error: {}: `{set}`: ", at(&path, &text, to)))
                 && err.contains(&format!("`{section}`: "))
                 && err.contains("zeta=0.05")
                 && err.lines().count() == 1,
@@ -361,12 +399,13 @@ fn figures_are_optional() {
     let dir = scratch("figures");
     let path = dir.join("one.yaml");
     std::fs::write(&path, text).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_tsim"))
-        .args(["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()])
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tsim"));
+    cmd.args(["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()])
         .env("CI", "1")
         .env("TSIM_FIGURES", dir.join("no-such-figures-command"))
-        .output()
-        .unwrap();
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let out = spawn(&mut cmd).wait_with_output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let outcome: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("small/small/outcome.json")).unwrap()).unwrap();
     assert_eq!(outcome["status"], "complete");
@@ -518,7 +557,7 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
             "1",
             "--quiet",
         ];
-        let mut child = Command::new(env!("CARGO_BIN_EXE_tsim")).args(args).spawn().unwrap();
+        let mut child = spawn(Command::new(env!("CARGO_BIN_EXE_tsim")).args(args));
         std::thread::sleep(Duration::from_millis(500));
         let killed = Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap();
         assert!(killed.success());
@@ -530,8 +569,7 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
         for case in o.iter().filter(|c| c["status"] == "interrupted") {
             let h5 = dir.join("small").join(case["id"].as_str().unwrap()).join("result.h5");
             if h5.exists() {
-                let file = hdf5::File::open(&h5).unwrap();
-                let s: hdf5::types::FixedUnicode<512> = file.attr("status").unwrap().read_scalar().unwrap();
+                let s: hdf5::types::FixedUnicode<512> = with_h5(&h5, |file| file.attr("status").unwrap().read_scalar().unwrap());
                 assert_eq!(s.as_str(), "interrupted", "{}", h5.display());
             }
         }
@@ -644,10 +682,198 @@ fn collect_lists_missing_cases_in_its_exit_code() {
     assert_eq!(some.status.code(), Some(1), "{err}");
     assert!(err.contains("missing: cable-nylon_zeta-0.05: "), "{err}");
     assert_eq!(err.matches("missing: ").count(), 1, "{err}");
-    let file = hdf5::File::open(dir.join("collected.h5")).unwrap();
-    assert_eq!(file.dataset("case").unwrap().size(), 4);
+    let cases = with_h5(&dir.join("collected.h5"), |file| file.dataset("case").unwrap().size());
+    assert_eq!(cases, 4);
 
     let none = tsim(&["collect", out.to_str().unwrap()]);
     assert_eq!(none.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&none.stderr).contains("summary.json"));
+}
+
+/// A value of the wrong type set by a sweep axis is reported at that value's line, under
+/// the dotted path it sets, in plain words.
+#[test]
+fn a_bad_type_in_a_sweep_value_names_its_path_and_line() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good.replace("{ eigen.rayleigh.ratios: [0.05, 0.05] }", "{ eigen.rayleigh.ratios: \"x\" }");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!("error: {}: `eigen.rayleigh.ratios`", at(&path, &text, "ratios: \"x\"")))
+            && err.contains("zeta=0.05")
+            && err.contains("expected")
+            && !err.contains("invalid type")
+            && err.lines().count() == 1,
+        "{err}"
+    );
+    // Two settings in one value: the one that breaks is named.
+    let text = good.replace(
+        "{ substitution.cable: nylon }",
+        "{ substitution.cable: nylon, folding.steps: many }",
+    );
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!("error: {}: `folding.steps`", at(&path, &text, "steps: many"))),
+        "{err}"
+    );
+}
+
+/// YAML errors read as `file:line:col: what is wrong`, in plain words: no parser
+/// internals (`invalid u64`, `DuplicateKeyPolicy`, `--> <input>`), no doubled prefix.
+#[test]
+fn yaml_errors_are_plain_words_at_file_line_col() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let plain = |err: &str| {
+        !err.contains("<input>")
+            && !err.contains("invalid u64")
+            && !err.contains("DuplicateKeyPolicy")
+            && !err.contains("Options")
+            && err.matches("error:").count() == 1
+    };
+    // A missing comma in a flow mapping.
+    let text = good.replace("struts: 3, stages: 1,", "struts: 3 stages: 1,");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let col = text.lines().nth(3).unwrap().find("3 stages").unwrap() + 1;
+    assert!(
+        err.starts_with(&format!("error: {}:4:{col}: ", path.display())) && err.contains("comma") && plain(&err),
+        "{err}"
+    );
+    // A key given twice: both lines, and the fix.
+    let text = good.replace("masses: paper", "masses: paper\nmasses: none");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!("error: {}:8:1: ", path.display()))
+            && err.contains("key `masses` appears twice (lines 7 and 8); keep one")
+            && plain(&err),
+        "{err}"
+    );
+    // An unknown key: the closest known one.
+    let text = good.replace("masses: paper", "masses: paper\nmassess: 3");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!(
+            "error: {}:8:1: unknown key `massess` (did you mean `masses`?)",
+            path.display()
+        )) && plain(&err),
+        "{err}"
+    );
+}
+
+/// Names that are not known get the closest known one: keys, materials, node groups, node ids.
+#[test]
+fn unknown_names_suggest_the_closest() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    for (from, to, needle, suggestion) in [
+        ("strut: aluminium", "strut: aluminum", "aluminum", "`aluminium`"),
+        (
+            "groups: [top], force: [0.0",
+            "groups: [tops], force: [0.0",
+            "groups: [tops]",
+            "`top`",
+        ),
+        ("radius: 2.0,", "radius: 2.0, strut_lenght: 5.0,", "strut_lenght", "`strut_length`"),
+    ] {
+        let text = good.replace(from, to);
+        let (out, path) = bad_config(&text);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&format!("{}:", at(&path, &text, needle))) && err.contains(&format!("did you mean {suggestion}?")),
+            "{err}"
+        );
+    }
+    let text = "name: m
+model:
+  nodes:
+    - { id: base1, xyz: [0.0, 0.0, 0.0], fix: [x, y, z] }
+    - { id: tip, xyz: [1.0, 0.0, 0.0] }
+  members:
+    - { id: c1, nodes: [base1, tpi], kind: cable, restlength: 1.0 }
+substitution: { strut: aluminium, cable: rubber }
+";
+    let (out, path) = bad_config(text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&format!("{}:", at(&path, text, "restlength"))) && err.contains("did you mean `rest_length`?"),
+        "{err}"
+    );
+    let text = text.replace("restlength", "rest_length");
+    let (out, _) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("unknown node `tpi` (did you mean `tip`?)"), "{err}");
+}
+
+/// A Newton failure names its stage (`equilibrium` for a model given with rest lengths,
+/// not form-finding), the criterion that failed against its tolerance, and the settings
+/// to change: the tolerances, `newton.max_iterations`, and for a stepped stage smaller
+/// steps (its `dt` or `steps`, its `max_cuts`).
+#[test]
+fn newton_failures_name_the_criterion_and_the_settings() {
+    let text = "name: eq
+model:
+  nodes:
+    - { id: a, xyz: [0.0, 0.0, 0.0], fix: [x, y, z] }
+    - { id: b, xyz: [0.7, 0.3, 0.0], fix: [y, z] }
+    - { id: c, xyz: [2.0, 0.0, 0.0], fix: [x, y, z] }
+  members:
+    - { id: c1, nodes: [a, b], kind: cable, rest_length: 0.5 }
+    - { id: c2, nodes: [b, c], kind: cable, rest_length: 0.5 }
+substitution: { strut: aluminium, cable: rubber }
+newton: { max_iterations: 1 }
+";
+    let dir = scratch("newton-eq");
+    let path = dir.join("eq.yaml");
+    std::fs::write(&path, text).unwrap();
+    let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("eq/summary.json")).unwrap()).unwrap();
+    assert_eq!(v[0]["status"], "failed");
+    let s = v[0]["reason"].as_str().unwrap();
+    assert!(
+        s.starts_with("equilibrium: ")
+            && s.contains("force residual")
+            && s.contains("tolerance")
+            && s.contains("`newton.max_iterations`")
+            && s.contains("node `b` direction x"),
+        "{s}"
+    );
+
+    // A tower's form-finding at one iteration: the criterion that failed, its tolerance.
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good.split("sweep:").next().unwrap().to_string() + "newton: { max_iterations: 1 }\n";
+    let dir = scratch("newton-ff");
+    let path = dir.join("ff.yaml");
+    std::fs::write(&path, text).unwrap();
+    let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("small/summary.json")).unwrap()).unwrap();
+    assert_eq!(v[0]["status"], "failed");
+    let s = v[0]["reason"].as_str().unwrap();
+    assert!(
+        s.starts_with("form-finding: ")
+            && (s.contains("force residual") || s.contains("displacement increment"))
+            && s.contains("exceeds its tolerance")
+            && s.contains("`newton.max_iterations`"),
+        "{s}"
+    );
+}
+
+/// `struts: 2` is refused as such, before any model building could report its ring
+/// members as duplicates.
+#[test]
+fn a_tower_of_two_struts_is_refused_plainly() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good.replace("struts: 3,", "struts: 2,");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!("error: {}: `model.tower`", at(&path, &text, "struts: 2")))
+            && err.contains("at least 3 struts")
+            && !err.contains("join the same nodes")
+            && err.lines().count() == 1,
+        "{err}"
+    );
 }

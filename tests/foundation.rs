@@ -307,7 +307,8 @@ fn unknown_node_in_explicit_model_is_named() {
         spec.build().unwrap_err(),
         ModelError::UnknownNode {
             member: "m1".into(),
-            node: "c".into()
+            node: "c".into(),
+            hint: String::new()
         }
     );
 }

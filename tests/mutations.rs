@@ -3,7 +3,7 @@
 //! numbers replaced by edge values, lines dropped, doubled or cut, keys swapped, stray
 //! punctuation — and each mutant goes through sweep expansion and validation, which
 //! builds every case's model. No mutant may panic, and every rejection must say where:
-//! a line (`file:N:` or the parser's `line N`). A bounded run here (3000 mutants, a few
+//! a line (`file:N:`, a parse error's `file:N:M:`). A bounded run here (3000 mutants, a few
 //! seconds); `TSIM_MUTANTS=N` runs more, and `TSIM_MUTANTS_DIR=dir` also writes the
 //! accepted mutants there, for a campaign of runs.
 
@@ -127,7 +127,7 @@ fn number_spans(line: &str) -> Vec<(usize, usize)> {
 fn located(e: &ConfigError) -> bool {
     match e {
         ConfigError::Values(errors) => errors.iter().all(|v| v.line.is_some()),
-        ConfigError::Syntax { message, .. } => message.contains("line"),
+        ConfigError::Syntax { line, .. } => line.is_some(),
         ConfigError::Io { .. } => false,
     }
 }

@@ -1,4 +1,5 @@
 use super::schema::ModelSpec;
+use crate::model::names::hint;
 use crate::model::{Member, Model, ModelError, Node};
 use nalgebra::Vector3;
 
@@ -25,6 +26,7 @@ impl ModelSpec {
                     nodes.iter().position(|n| n.id == id).ok_or_else(|| ModelError::UnknownNode {
                         member: member.to_string(),
                         node: id.to_string(),
+                        hint: hint(id, nodes.iter().map(|n| n.id.as_str())),
                     })
                 };
                 let members = self
@@ -47,6 +49,7 @@ impl ModelSpec {
                             nodes.iter().position(|n| &n.id == id).ok_or_else(|| ModelError::UnknownGroupNode {
                                 group: g.clone(),
                                 node: id.clone(),
+                                hint: hint(id, nodes.iter().map(|n| n.id.as_str())),
                             })
                         })
                         .collect::<Result<Vec<_>, _>>()?;

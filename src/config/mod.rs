@@ -10,6 +10,7 @@ mod locate;
 mod materials;
 mod plan;
 mod schema;
+mod syntax;
 mod tables;
 mod validate;
 
@@ -29,11 +30,12 @@ pub fn locate_line(text: &str, field: &str) -> Option<usize> {
 /// the file in errors.
 pub fn parse(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
     let cfg = serde_saphyr::from_str(text).map_err(|e| {
-        let message = e.to_string();
+        let syntax::Described { line, column, message } = syntax::describe(&e, text);
         ConfigError::Syntax {
             file: origin.to_string(),
-            // The CLI adds its own `error: `.
-            message: message.strip_prefix("error: ").unwrap_or(&message).to_string(),
+            line,
+            column,
+            message,
         }
     })?;
     match non_finite_literal(text) {

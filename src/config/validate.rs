@@ -10,14 +10,27 @@ use crate::stage::measure::{CableCoefficients, MeasureSpec};
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     /// YAML syntax, an unknown key, a wrong type or conflicting keys: the parser stops at
-    /// the first, and its message has line and column.
-    #[error("{file}: {message}")]
-    Syntax { file: String, message: String },
+    /// the first, at its line and column (`file:line:col: message`).
+    #[error("{file}{}: {message}", line_col(*.line, *.column))]
+    Syntax {
+        file: String,
+        line: Option<usize>,
+        column: Option<usize>,
+        message: String,
+    },
     /// Every bad value found, one per line.
     #[error("{}", .0.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n"))]
     Values(Vec<ValueError>),
     #[error("{file}: {message}")]
     Io { file: String, message: String },
+}
+
+fn line_col(line: Option<usize>, column: Option<usize>) -> String {
+    match (line, column) {
+        (Some(l), Some(c)) => format!(":{l}:{c}"),
+        (Some(l), None) => format!(":{l}"),
+        _ => String::new(),
+    }
 }
 
 /// A bad value in a file: `line` is the field's (or the sweep value's that set it) when
@@ -180,26 +193,14 @@ impl CaseConfig {
         ] {
             match lib.get(name) {
                 Some(mat) => check_material(&format!("materials.{name}"), mat, p),
-                None => p.add(
-                    field,
-                    format!(
-                        "unknown material `{name}`; known: {}",
-                        lib.keys().cloned().collect::<Vec<_>>().join(", ")
-                    ),
-                ),
+                None => p.add(field, unknown_material(name, &lib)),
             }
         }
         p.positive("substitution.prestress_scale", self.substitution.prestress_scale);
         for (k, a) in self.substitution.assign.iter().enumerate() {
             let field = format!("substitution.assign[{k}]");
             match (&a.material, &a.define) {
-                (Some(name), None) if !lib.contains_key(name) => p.add(
-                    format!("{field}.material"),
-                    format!(
-                        "unknown material `{name}`; known: {}",
-                        lib.keys().cloned().collect::<Vec<_>>().join(", ")
-                    ),
-                ),
+                (Some(name), None) if !lib.contains_key(name) => p.add(format!("{field}.material"), unknown_material(name, &lib)),
                 (Some(_), None) => {}
                 (None, Some(spec)) => check_material(&format!("{field}.define"), spec, p),
                 _ => p.add(field.clone(), "give `material` (a name) or `define` (a material), one of them"),
@@ -243,7 +244,7 @@ impl CaseConfig {
             }
             if let Some(c) = &s.control {
                 match model.nodes.iter().find(|n| n.id == c.node) {
-                    None => p.add("static.control.node", format!("unknown node `{}`", c.node)),
+                    None => p.add("static.control.node", model.unknown_node(&c.node).to_string()),
                     Some(n) if n.support[c.axis.index()] => p.add(
                         "static.control.axis",
                         format!(
@@ -291,17 +292,32 @@ impl CaseConfig {
     }
 }
 
+/// An unknown material named, with the closest known one and the list.
+fn unknown_material(name: &str, lib: &std::collections::BTreeMap<String, MaterialSpec>) -> String {
+    format!(
+        "unknown material `{name}`{}; known: {}",
+        crate::model::names::hint(name, lib.keys().map(String::as_str)),
+        lib.keys().cloned().collect::<Vec<_>>().join(", ")
+    )
+}
+
 /// Most nodes a model may have: checked before anything is allocated for it (a tower of
 /// 2³² struts asked for 481 GB). A million nodes is some 30 times the largest structure
 /// tsim has been measured on.
 pub const MAX_NODES: usize = 1_000_000;
 
 fn check_tower(t: &TowerSpec, p: &mut Problems) {
-    if t.struts < 3 || t.stages < 1 {
+    if t.struts < 3 {
         p.add(
             "model.tower",
-            format!("struts = {}, stages = {}; need struts ≥ 3 and stages ≥ 1", t.struts, t.stages),
+            format!(
+                "struts = {}: a tower needs at least 3 struts per stage (a stage of 2 has no ring to close)",
+                t.struts
+            ),
         );
+    }
+    if t.stages < 1 {
+        p.add("model.tower", format!("stages = {}: a tower needs at least 1 stage", t.stages));
     }
     let nodes = t.struts.saturating_mul(t.stages).saturating_mul(2);
     if nodes > MAX_NODES {
@@ -635,10 +651,7 @@ fn check_node_set(field: &str, nodes: &[String], groups: &[String], model: Optio
     let Some(model) = model else { return };
     let before = p.0.len();
     for id in nodes.iter().filter(|id| !model.nodes.iter().any(|n| &n.id == *id)) {
-        p.add(
-            format!("{field}.nodes"),
-            crate::model::ModelError::UnknownNodeId { node: id.clone() }.to_string(),
-        );
+        p.add(format!("{field}.nodes"), model.unknown_node(id).to_string());
     }
     for e in groups.iter().filter_map(|g| model.group(g).err()) {
         p.add(format!("{field}.groups"), e.to_string());

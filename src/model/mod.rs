@@ -4,6 +4,7 @@
 //! stage of a sweep.
 
 pub mod generate;
+pub mod names;
 mod validate;
 
 use nalgebra::Vector3;
@@ -73,6 +74,14 @@ impl Model {
         self.nodes.iter().map(|n| n.support.iter().filter(|&&s| s).count()).sum()
     }
 
+    /// The error for a node id the model does not have, with the closest id it has.
+    pub fn unknown_node(&self, id: &str) -> ModelError {
+        ModelError::UnknownNodeId {
+            node: id.to_string(),
+            hint: names::hint(id, self.nodes.iter().map(|n| n.id.as_str())),
+        }
+    }
+
     /// Nodes of a group, or an error naming the group and the ones that exist.
     pub fn group(&self, name: &str) -> Result<&[usize], ModelError> {
         self.node_groups
@@ -81,6 +90,7 @@ impl Model {
             .ok_or_else(|| ModelError::UnknownGroup {
                 group: name.to_string(),
                 known: self.node_groups.keys().cloned().collect::<Vec<_>>().join(", "),
+                hint: names::hint(name, self.node_groups.keys().map(String::as_str)),
             })
     }
 
@@ -90,7 +100,7 @@ impl Model {
         let mut set = Vec::new();
         for id in ids {
             let n = self.nodes.iter().position(|n| &n.id == id);
-            set.push(n.ok_or_else(|| ModelError::UnknownNodeId { node: id.clone() })?);
+            set.push(n.ok_or_else(|| self.unknown_node(id))?);
         }
         for g in groups {
             set.extend_from_slice(self.group(g)?);
@@ -108,7 +118,10 @@ impl Model {
         let mut set = Vec::new();
         for id in ids {
             let m = self.members.iter().position(|m| &m.id == id);
-            set.push(m.ok_or_else(|| ModelError::UnknownMember { member: id.clone() })?);
+            set.push(m.ok_or_else(|| ModelError::UnknownMember {
+                member: id.clone(),
+                hint: names::hint(id, self.members.iter().map(|m| m.id.as_str())),
+            })?);
         }
         for g in groups {
             let before = set.len();
@@ -119,6 +132,7 @@ impl Model {
                 known.dedup();
                 return Err(ModelError::UnknownMemberGroup {
                     group: g.clone(),
+                    hint: names::hint(g, known.iter().copied()),
                     known: known.join(", "),
                 });
             }

@@ -8,8 +8,8 @@ use std::collections::HashMap;
 pub enum ModelError {
     #[error("node id `{node}` is used twice; give every node a unique id")]
     DuplicateNode { node: String },
-    #[error("member `{member}` refers to unknown node `{node}`; define the node or fix the id")]
-    UnknownNode { member: String, node: String },
+    #[error("member `{member}` refers to unknown node `{node}`{hint}; define the node or fix the id")]
+    UnknownNode { member: String, node: String, hint: String },
     #[error("member `{member}` has zero length (nodes `{a}` and `{b}` coincide); move a node or remove the member")]
     ZeroLength { member: String, a: String, b: String },
     #[error("members `{member}` and `{other}` join the same nodes `{a}` and `{b}`; remove one of them")]
@@ -21,16 +21,16 @@ pub enum ModelError {
     },
     #[error("node `{node}` has no members; connect it or remove it")]
     UnusedNode { node: String },
-    #[error("node group `{group}` names unknown node `{node}`")]
-    UnknownGroupNode { group: String, node: String },
-    #[error("unknown node group `{group}`; the model has: {known}")]
-    UnknownGroup { group: String, known: String },
-    #[error("unknown node `{node}`; use a node id of `model.nodes` (or a group with `groups`)")]
-    UnknownNodeId { node: String },
-    #[error("unknown member `{member}`; use a member id of `model.members` (or a member group with `groups`)")]
-    UnknownMember { member: String },
-    #[error("unknown member group `{group}`; the model's member groups: {known}")]
-    UnknownMemberGroup { group: String, known: String },
+    #[error("node group `{group}` names unknown node `{node}`{hint}")]
+    UnknownGroupNode { group: String, node: String, hint: String },
+    #[error("unknown node group `{group}`{hint}; the model has: {known}")]
+    UnknownGroup { group: String, known: String, hint: String },
+    #[error("unknown node `{node}`{hint}; use a node id of `model.nodes` (or a group with `groups`)")]
+    UnknownNodeId { node: String, hint: String },
+    #[error("unknown member `{member}`{hint}; use a member id of `model.members` (or a member group with `groups`)")]
+    UnknownMember { member: String, hint: String },
+    #[error("unknown member group `{group}`{hint}; the model's member groups: {known}")]
+    UnknownMemberGroup { group: String, known: String, hint: String },
     #[error("names no node: give `nodes` (node ids) or `groups` (node groups)")]
     EmptyNodeSet,
     #[error("names no member: give `members` (member ids) or `groups` (member groups)")]

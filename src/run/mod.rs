@@ -153,7 +153,19 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
     let dir = opts.out.join(name);
     std::fs::create_dir_all(&dir)?;
     let _lock = files::RunLock::acquire(&dir)?;
-    let progress = Progress::new(cases.len(), opts.quiet);
+    // Complete cases are reused, reported in one line rather than one each.
+    let reused: Vec<Option<CaseOutcome>> = cases
+        .iter()
+        .map(|case| (!opts.force).then(|| already_complete(case, &dir.join(&case.id))).flatten())
+        .collect();
+    let count = reused.iter().flatten().count();
+    if count > 0 {
+        eprintln!(
+            "{count} complete case{} reused (same config, outputs intact); --force reruns them",
+            if count == 1 { "" } else { "s" }
+        );
+    }
+    let progress = Progress::new(cases.len() - count, opts.quiet);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(opts.jobs.max(1))
         .build()
@@ -164,7 +176,8 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
     let outcomes: Vec<CaseOutcome> = pool.install(|| {
         cases
             .par_iter()
-            .map(|case| run_one(case, &dir.join(&case.id), opts.force, background, &progress))
+            .zip(reused)
+            .map(|(case, done)| done.unwrap_or_else(|| run_one(case, &dir.join(&case.id), background, &progress)))
             .collect()
     });
     progress.finish();
@@ -205,13 +218,7 @@ fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
     })
 }
 
-fn run_one(case: &Case, dir: &Path, force: bool, background: bool, progress: &Progress) -> CaseOutcome {
-    if !force {
-        if let Some(done) = already_complete(case, dir) {
-            progress.done(&case.id, &done.describe(), 0.0);
-            return done;
-        }
-    }
+fn run_one(case: &Case, dir: &Path, background: bool, progress: &Progress) -> CaseOutcome {
     if interrupted() {
         // Not started: its directory is left as an earlier run left it.
         return CaseOutcome {

@@ -203,7 +203,7 @@ pub fn expand(text: &str, origin: &str, allow_large: bool) -> Result<Expanded, C
                 for mut e in case_errors {
                     // A bad sweep value fails every case it is in: report it once.
                     if seen.insert((e.line, e.field.clone(), e.message.clone())) {
-                        e.field = format!("{} (in sweep case {name})", e.field);
+                        e.message = format!("{} (in sweep case {name})", e.message);
                         errors.push(e);
                     }
                 }
@@ -344,23 +344,32 @@ impl Sweep<'_> {
     }
 
     /// A case that does not deserialize (a wrong type or conflicting keys): each chosen
-    /// value that breaks the base on its own is named at its line; when only their
-    /// combination fails, the case is, at the `sweep` line.
+    /// value that breaks the base on its own is named at its line, under the dotted path
+    /// it sets (the first of its settings that breaks the base alone, else the value's
+    /// `set`); when only their combination fails, the case is, at the `sweep` line.
     fn unreadable(&self, chosen: &[usize], base: &Value, message: String) -> Vec<ValueError> {
+        let breaks = |sets: &mut dyn Iterator<Item = (&String, &Value)>| -> Option<String> {
+            let mut v = base.clone();
+            for (path, new) in sets {
+                set_path(&mut v, path, new.clone()).ok()?;
+            }
+            serde_json::from_value::<CaseConfig>(v).err().map(|e| plain_serde(&e.to_string()))
+        };
         let errors: Vec<ValueError> = chosen
             .iter()
             .enumerate()
             .filter_map(|(a, &i)| {
-                let mut v = base.clone();
-                for (path, new) in &self.axes[a].values[i].set {
-                    set_path(&mut v, path, new.clone()).ok()?;
-                }
-                let e = serde_json::from_value::<CaseConfig>(v).err()?;
-                Some(self.error(self.value_line(a, i), format!("sweep.axes[{a}].values[{i}].set"), e.to_string()))
+                let set = &self.axes[a].values[i].set;
+                let whole = breaks(&mut set.iter())?;
+                let (field, message) = set
+                    .iter()
+                    .find_map(|(path, new)| breaks(&mut std::iter::once((path, new))).map(|m| (path.clone(), m)))
+                    .unwrap_or_else(|| (format!("sweep.axes[{a}].values[{i}].set"), whole));
+                Some(self.error(self.value_line(a, i), field, message))
             })
             .collect();
         if errors.is_empty() {
-            vec![self.error(config::locate_line(self.text, "sweep"), "sweep".into(), message)]
+            vec![self.error(config::locate_line(self.text, "sweep"), "sweep".into(), plain_serde(&message))]
         } else {
             errors
         }
@@ -390,6 +399,27 @@ impl Sweep<'_> {
             message,
         }
     }
+}
+
+/// A serde message in plain words: `invalid type: string "x", expected f64` reads
+/// `is the string "x"; expected a number (f64)`.
+fn plain_serde(message: &str) -> String {
+    let message = message.split(" at line ").next().unwrap_or(message);
+    let Some(rest) = message
+        .strip_prefix("invalid type: ")
+        .or_else(|| message.strip_prefix("invalid value: "))
+    else {
+        return message.to_string();
+    };
+    let (found, expected) = rest.split_once(", expected ").unwrap_or((rest, "another value"));
+    let expected = match expected {
+        "f64" | "f32" => "a number",
+        "usize" | "u64" | "u32" | "u8" => "a whole number ≥ 0",
+        "i64" | "i32" => "a whole number",
+        "a boolean" | "bool" => "true or false",
+        e => e,
+    };
+    format!("is {}; expected {expected}", found.replacen("string ", "the string ", 1))
 }
 
 /// Whether the dotted path `inner` is `outer` or lies inside it (`a.b` in `a`, `a[0]` in `a`).
