@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tsim::config::{bytes_text, ConfigError};
-use tsim::run::{collect, default_jobs, install_interrupt, interrupted, load, run, Expanded, RunOptions, EXIT_INTERRUPTED};
+use tsim::run::{collect, default_jobs, install_interrupt, interrupted, load, run, Expanded, OnDisk, RunOptions, EXIT_INTERRUPTED};
 
 #[derive(Parser)]
 #[command(
@@ -39,6 +39,11 @@ enum Command {
         /// No progress bars; one line per finished case.
         #[arg(long)]
         quiet: bool,
+        /// Run only the cases whose id matches (a glob such as `strut-steel_*`, or a
+        /// substring; repeatable). Complete cases are still reused and the others are
+        /// summarized as `pending`; with --force the matching ones are rerun.
+        #[arg(long, value_name = "PATTERN")]
+        only: Vec<String>,
         /// Lift the limits on estimated output (per run), peak memory (per case) and steps
         /// (per stage); the config's `limits` section raises them one by one.
         #[arg(long)]
@@ -56,6 +61,10 @@ enum Command {
     /// and peak memory.
     Check {
         config: PathBuf,
+        /// Output root the cases would go to, to show each as new, complete (reused by a
+        /// run), changed (another config was run there) or incomplete.
+        #[arg(long, default_value = "runs")]
+        out: PathBuf,
         /// Lift the limits on estimated output, peak memory and steps, as `run` would.
         #[arg(long)]
         allow_large: bool,
@@ -91,18 +100,24 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
-        Command::Check { config, allow_large } => match load(&config, allow_large) {
+        Command::Check { config, out, allow_large } => match load(&config, allow_large) {
             Ok(Expanded { name, cases, limits }) => {
-                println!("{}: {} case(s) into {name}/", config.display(), cases.len());
+                let dir = out.join(&name);
+                println!("{}: {} case(s) into {}/", config.display(), cases.len(), dir.display());
                 let width = cases.iter().map(|c| c.id.len()).max().unwrap_or(0);
+                let mut counts = std::collections::BTreeMap::new();
                 for c in &cases {
+                    let state = OnDisk::of(c, &dir.join(&c.id)).as_str();
+                    *counts.entry(state).or_insert(0) += 1;
                     println!(
-                        "  {:width$}  output {}, peak memory {}",
+                        "  {:width$}  {state:10}  output {}, peak memory {}",
                         c.id,
                         bytes_text(c.estimate.output),
                         bytes_text(c.estimate.memory)
                     );
                 }
+                let counts: Vec<String> = counts.iter().map(|(s, n)| format!("{n} {s}")).collect();
+                println!("cases: {} (a run reuses the complete ones)", counts.join(", "));
                 let output: f64 = cases.iter().map(|c| c.estimate.output).sum();
                 let memory = cases.iter().map(|c| c.estimate.memory).fold(0.0, f64::max);
                 let limit = |b: f64| {
@@ -132,6 +147,7 @@ fn main() -> ExitCode {
             jobs,
             force,
             quiet,
+            only,
             allow_large,
         } => {
             let Expanded { name, cases, .. } = match load(&config, allow_large) {
@@ -146,6 +162,7 @@ fn main() -> ExitCode {
                 jobs: jobs.unwrap_or_else(default_jobs),
                 force,
                 quiet,
+                only,
             };
             if let Err(e) = install_interrupt() {
                 eprintln!("warning: cannot handle SIGINT/SIGTERM ({e}); an interrupted run leaves its files marked running");

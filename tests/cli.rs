@@ -877,3 +877,69 @@ fn a_tower_of_two_struts_is_refused_plainly() {
         "{err}"
     );
 }
+
+/// `--only` runs some cases of a sweep: the others are `pending` in the summaries, and
+/// `check --out` shows each case as new, complete or changed before a run; a full rerun
+/// then reuses the complete ones and computes the rest.
+#[test]
+fn only_runs_some_cases_and_check_shows_where_each_stands() {
+    let out = scratch("only");
+    let o = out.to_str().unwrap();
+    let states = |config: &str| -> Vec<(String, String)> {
+        let check = tsim(&["check", config, "--out", o]);
+        assert!(check.status.success(), "{}", String::from_utf8_lossy(&check.stderr));
+        let text = String::from_utf8_lossy(&check.stdout).to_string();
+        assert!(text.lines().next().unwrap().contains(&format!("{o}/small/")), "{text}");
+        text.lines()
+            .filter(|l| l.starts_with("  "))
+            .map(|l| {
+                let mut w = l.split_whitespace();
+                (w.next().unwrap().to_string(), w.next().unwrap().to_string())
+            })
+            .collect()
+    };
+    assert!(states(SWEEP).iter().all(|(_, s)| s == "new"));
+
+    let run = tsim(&["run", SWEEP, "--out", o, "--only", "cable-nylon_*", "--quiet"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let by_id: Vec<(String, String, String)> = outcomes(&out)
+        .iter()
+        .map(|c| {
+            (
+                c["id"].as_str().unwrap().into(),
+                c["status"].as_str().unwrap().into(),
+                c["run"].as_str().unwrap().into(),
+            )
+        })
+        .collect();
+    for (id, status, run) in &by_id {
+        let expected = if id.starts_with("cable-nylon_") {
+            ("complete", "computed")
+        } else {
+            ("pending", "not_started")
+        };
+        assert_eq!((status.as_str(), run.as_str()), expected, "{id}");
+    }
+    assert!(
+        !out.join("small/cable-rubber_zeta-0.05").exists(),
+        "an unselected case is not touched"
+    );
+    let listed = states(SWEEP);
+    assert_eq!(listed.iter().filter(|(_, s)| s == "complete").count(), 2, "{listed:?}");
+    assert_eq!(listed.iter().filter(|(_, s)| s == "new").count(), 2, "{listed:?}");
+
+    // A changed setting shows as `changed` for the cases written with the old one.
+    let text = std::fs::read_to_string(SWEEP)
+        .unwrap()
+        .replace("\nsweep:", "\nnewton: { max_iterations: 49 }\nsweep:");
+    assert!(text.contains("max_iterations: 49"));
+    let changed = out.join("changed.yaml");
+    std::fs::write(&changed, &text).unwrap();
+    let listed = states(changed.to_str().unwrap());
+    assert_eq!(listed.iter().filter(|(_, s)| s == "changed").count(), 2, "{listed:?}");
+
+    let all = tsim(&["run", SWEEP, "--out", o, "--quiet"]);
+    assert!(all.status.success());
+    assert!(String::from_utf8_lossy(&all.stderr).contains("2 complete cases reused"));
+    assert!(outcomes(&out).iter().all(|c| c["status"] == "complete"));
+}

@@ -27,6 +27,51 @@ pub struct RunOptions {
     pub jobs: usize,
     pub force: bool,
     pub quiet: bool,
+    /// Run only the cases whose id matches one of these (see [`selected`]); empty: all.
+    pub only: Vec<String>,
+}
+
+/// Whether case `id` matches one of `patterns`: a glob (`*`, `?`, `[...]`) matched against
+/// the whole id, or else a substring of it. No pattern selects every case.
+pub fn selected(id: &str, patterns: &[String]) -> bool {
+    patterns.is_empty()
+        || patterns.iter().any(|p| match glob::Pattern::new(p) {
+            Ok(glob) if p.contains(['*', '?', '[']) => glob.matches(id),
+            _ => id.contains(p.as_str()),
+        })
+}
+
+/// Where a case stands on disk before a run, as `tsim check` lists it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OnDisk {
+    /// Nothing written yet.
+    New,
+    /// Complete with this config, outputs intact: a run reuses it.
+    Complete,
+    /// Written with another config (its `case.yaml` differs): a run redoes it.
+    Changed,
+    /// Started with this config but not complete (failed, interrupted, or outputs gone).
+    Incomplete,
+}
+
+impl OnDisk {
+    pub fn of(case: &Case, dir: &Path) -> Self {
+        match std::fs::read_to_string(dir.join("case.yaml")) {
+            Err(_) => OnDisk::New,
+            Ok(yaml) if yaml != case.yaml => OnDisk::Changed,
+            Ok(_) if already_complete(case, dir).is_some() => OnDisk::Complete,
+            Ok(_) => OnDisk::Incomplete,
+        }
+    }
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            OnDisk::New => "new",
+            OnDisk::Complete => "complete",
+            OnDisk::Changed => "changed",
+            OnDisk::Incomplete => "incomplete",
+        }
+    }
 }
 
 /// How one case stands at the end of this run: one of a fixed set of words, whatever the
@@ -40,15 +85,20 @@ pub enum CaseStatus {
     Failed,
     /// Stopped, or not started, because a signal asked the run to stop.
     Interrupted,
+    /// Not complete and left out of this run by `--only` (its directory as an earlier run
+    /// left it).
+    Pending,
 }
 
 impl CaseStatus {
-    /// "complete", "failed" or "interrupted": the `status` column of the summaries.
+    /// "complete", "failed", "interrupted" or "pending": the `status` column of the
+    /// summaries.
     pub fn as_str(self) -> &'static str {
         match self {
             CaseStatus::Complete => "complete",
             CaseStatus::Failed => "failed",
             CaseStatus::Interrupted => "interrupted",
+            CaseStatus::Pending => "pending",
         }
     }
 }
@@ -67,7 +117,8 @@ pub enum RunKind {
     Computed,
     /// Complete from an earlier run with the same resolved config, outputs verified; not rerun.
     Reused,
-    /// Not started: the run was interrupted first (the directory is as an earlier run left it).
+    /// Not started: the run was interrupted first, or `--only` left it out (the directory
+    /// is as an earlier run left it).
     NotStarted,
 }
 
@@ -165,7 +216,12 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
             if count == 1 { "" } else { "s" }
         );
     }
-    let progress = Progress::new(cases.len() - count, opts.quiet);
+    let to_run = cases
+        .iter()
+        .zip(&reused)
+        .filter(|(c, done)| done.is_none() && selected(&c.id, &opts.only))
+        .count();
+    let progress = Progress::new(to_run, opts.quiet);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(opts.jobs.max(1))
         .build()
@@ -177,7 +233,12 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
         cases
             .par_iter()
             .zip(reused)
-            .map(|(case, done)| done.unwrap_or_else(|| run_one(case, &dir.join(&case.id), background, &progress)))
+            .map(|(case, done)| {
+                done.unwrap_or_else(|| match selected(&case.id, &opts.only) {
+                    true => run_one(case, &dir.join(&case.id), background, &progress),
+                    false => not_started(case, CaseStatus::Pending),
+                })
+            })
             .collect()
     });
     progress.finish();
@@ -218,20 +279,24 @@ fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
     })
 }
 
+/// A case this run does not start: its directory is left as an earlier run left it.
+fn not_started(case: &Case, status: CaseStatus) -> CaseOutcome {
+    CaseOutcome {
+        id: case.id.clone(),
+        params: case.params.clone(),
+        status,
+        reason: None,
+        run: RunKind::NotStarted,
+        wall_seconds: 0.0,
+        summary: None,
+        figures: None,
+        files: Default::default(),
+    }
+}
+
 fn run_one(case: &Case, dir: &Path, background: bool, progress: &Progress) -> CaseOutcome {
     if interrupted() {
-        // Not started: its directory is left as an earlier run left it.
-        return CaseOutcome {
-            id: case.id.clone(),
-            params: case.params.clone(),
-            status: CaseStatus::Interrupted,
-            reason: None,
-            run: RunKind::NotStarted,
-            wall_seconds: 0.0,
-            summary: None,
-            figures: None,
-            files: Default::default(),
-        };
+        return not_started(case, CaseStatus::Interrupted);
     }
     let start = Instant::now();
     let result = execute(case, dir, background, progress);
