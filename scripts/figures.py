@@ -65,6 +65,18 @@ SIDE = dict(elev=0.0, azim=-90.0)  # side view: looking along +y at the x-z plan
 N_MODES = 6  # panels of mode_shapes.png
 
 
+# summary.csv columns carry their unit as a suffix (docs/outputs.md); the rest are ratios.
+UNIT_SUFFIXES = {"_rad2_s2": "rad²/s²", "_hz": "Hz", "_s": "s", "_j": "J", "_n": "N", "_m": "m"}
+
+
+def with_unit(column):
+    """An axis label for a summary column: its name and its unit in brackets."""
+    for suffix, unit in UNIT_SUFFIXES.items():
+        if column.endswith(suffix):
+            return f"{column} [{unit}]"
+    return f"{column} [1]"
+
+
 def note(msg):
     print(f"figures: {msg}", file=sys.stderr)
 
@@ -465,13 +477,13 @@ def sweep_figure(summary, dpi, x=None, hue=None, facet=None, y="deploy_shape_err
             ax.plot(line["_x"], line["_y"], "o-", color=colours[k % len(colours)], label=h or None, ms=4)
         if positive:
             ax.set_yscale("log")
-        ax.set_xlabel(x or "case")
+        ax.set_xlabel(with_unit(x) if x else "case")
         ax.set_title(f"{facet} = {fv}" if fv is not None else "", fontsize=10)
         ax.grid(alpha=0.3, which="both")
-    axs[0].set_ylabel(y + (" (log)" if positive else ""))
+    axs[0].set_ylabel(with_unit(y) + (" (log)" if positive else ""))
     if hue_cols:
         axs[-1].legend(title=", ".join(hue_cols), fontsize=8, title_fontsize=8)
-    fig.suptitle(f"Sweep {Path(summary).parent.name}: {y} against {x or 'case'}" +
+    fig.suptitle(f"{Path(summary).parent.name}: {y} against {x or 'case'}" +
                  (f", one line per {', '.join(hue_cols)}" if hue_cols else "") +
                  (f", facets by {facet}" if facet else ""), fontsize=11)
     fig.subplots_adjust(left=0.06, right=0.98, bottom=0.12, top=0.85, wspace=0.05)
