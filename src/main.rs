@@ -2,7 +2,7 @@
 //! (0 every case complete, 1 a case failed, 2 a config or usage error, 130 interrupted by
 //! SIGINT or SIGTERM).
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tsim::config::{bytes_text, ConfigError};
@@ -57,6 +57,9 @@ enum Command {
         /// A run directory (OUT/<name>, holding summary.json).
         run_dir: PathBuf,
     },
+    /// Print a completion script for a shell, e.g. `tsim completions bash >
+    /// ~/.local/share/bash-completion/completions/tsim`.
+    Completions { shell: clap_complete::Shell },
     /// Validate a config and list the cases it would run, with their estimated output
     /// and peak memory.
     Check {
@@ -100,6 +103,10 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
+        Command::Completions { shell } => {
+            clap_complete::generate(shell, &mut Cli::command(), "tsim", &mut std::io::stdout());
+            ExitCode::SUCCESS
+        }
         Command::Check { config, out, allow_large } => match load(&config, allow_large) {
             Ok(Expanded { name, cases, limits }) => {
                 let dir = out.join(&name);

@@ -943,3 +943,21 @@ fn only_runs_some_cases_and_check_shows_where_each_stands() {
     assert!(String::from_utf8_lossy(&all.stderr).contains("2 complete cases reused"));
     assert!(outcomes(&out).iter().all(|c| c["status"] == "complete"));
 }
+
+/// `tsim completions SHELL` prints a completion script that knows the subcommands and
+/// their flags (fish spells them `-l only`); an unknown shell is a usage error.
+#[test]
+fn completions_know_the_commands() {
+    for shell in ["bash", "zsh", "fish"] {
+        let out = tsim(&["completions", shell]);
+        assert!(out.status.success(), "{shell}");
+        let script = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            ["run", "check", "collect", "only", "allow-large"]
+                .iter()
+                .all(|w| script.contains(w)),
+            "{shell}"
+        );
+    }
+    assert_eq!(tsim(&["completions", "cmd.exe"]).status.code(), Some(2));
+}
