@@ -176,8 +176,40 @@ impl Steps<'_> {
         self.applied = applied;
     }
 
-    /// Load control: the total load `target` applied in `steps` proportional steps from
-    /// `asm`'s state under the current loads. Returns the final positions.
+    /// Takes `phase` to its end in `steps` equal steps (each halved on failure up to
+    /// `max_cuts` times), recording each; the load is `base` + factor × `pattern`.
+    /// Returns the final factor.
+    fn run_phase(
+        &mut self,
+        phase: &mut impl Phase,
+        [base, pattern]: [&[Vector3<f64>]; 2],
+        steps: usize,
+        max_cuts: u32,
+        recorder: &mut dyn Recorder,
+    ) -> Result<f64> {
+        let mut factor = 0.0;
+        for step in 1..=steps {
+            let previous = phase.asm().x.clone();
+            let (from, to) = ((step - 1) as f64 / steps as f64, step as f64 / steps as f64);
+            let (iterations, cut) = bisect(from, to, max_cuts, &mut |_, to| phase.solve_to(to), &|a, b| a + b).map_err(solve_error(
+                "static",
+                Some(self.recorded),
+                None,
+                self.structure,
+                self.dofs,
+            ))?;
+            factor = phase.factor(to);
+            self.summary.newton_iterations += iterations;
+            self.summary.cut_steps += usize::from(cut);
+            let applied = base.iter().zip(pattern).map(|(b, p)| b + p * factor).collect();
+            self.advance(&phase.asm().x, applied, &previous);
+            self.record(phase.asm(), factor, recorder)?;
+        }
+        Ok(factor)
+    }
+
+    /// Load control: from `asm`'s state under the current loads to the total load
+    /// `target`, in proportional steps. Returns the final positions.
     fn load_control(
         &mut self,
         asm: Assembly<'_>,
@@ -188,40 +220,19 @@ impl Steps<'_> {
     ) -> Result<Vec<Vector3<f64>>> {
         let dofs = self.dofs;
         let base = self.applied.clone();
-        let at = |s: f64| -> Vec<Vector3<f64>> { base.iter().zip(target).map(|(b, t)| b + (t - b) * s).collect() };
+        let pattern: Vec<Vector3<f64>> = base.iter().zip(target).map(|(b, t)| t - b).collect();
         let model = &self.structure.model;
-        let mut ws = NewtonWorkspace::new(dofs.len(), &self.newton, false, || tangent_pattern(model, dofs));
-        let mut u = asm.free_coordinates();
-        let mut problem = StaticEquilibrium {
-            asm,
-            load: free_values(dofs, &base),
+        let mut phase = LoadSteps {
+            solver: Solver::new(asm.free_coordinates(), self.newton, dofs, model, tangent_pattern(model, dofs)),
+            base: free_values(dofs, &base),
+            pattern: free_values(dofs, &pattern),
+            problem: StaticEquilibrium {
+                load: free_values(dofs, &base),
+                asm,
+            },
         };
-        let newton_settings = self.newton;
-        let length = model.size();
-        for step in 1..=steps {
-            let previous = problem.asm.x.clone();
-            let mut solve = |_: f64, to: f64| -> Result<usize, SolveError> {
-                problem.load = free_values(dofs, &at(to));
-                let saved = u.clone();
-                newton(&mut problem, &mut u, &newton_settings, length, &mut ws)
-                    .map(|r| r.iterations)
-                    .inspect_err(|_| u.clone_from(&saved))
-            };
-            let from = (step - 1) as f64 / steps as f64;
-            let (iterations, cut) = bisect(from, step as f64 / steps as f64, max_cuts, &mut solve, &|a, b| a + b).map_err(solve_error(
-                "static",
-                Some(self.recorded),
-                None,
-                self.structure,
-                dofs,
-            ))?;
-            problem.asm.set_free(&u);
-            self.summary.newton_iterations += iterations;
-            self.summary.cut_steps += usize::from(cut);
-            self.advance(&problem.asm.x, at(step as f64 / steps as f64), &previous);
-            self.record(&problem.asm, step as f64 / steps as f64, recorder)?;
-        }
-        Ok(problem.asm.x)
+        self.run_phase(&mut phase, [&base, &pattern], steps, max_cuts, recorder)?;
+        Ok(phase.problem.asm.x)
     }
 
     /// Displacement control: the `pattern` load's factor follows `control` in `steps`
@@ -254,46 +265,121 @@ impl Steps<'_> {
             .filter(|(_, p)| **p != 0.0)
             .map(|(i, _)| (i, dof))
             .collect();
-        let mut ws = NewtonWorkspace::new(dofs.len(), &self.newton, false, || tangent_pattern(model, dofs).chain(pattern_rows));
         let mut u = asm.free_coordinates();
         u[dof] = 0.0;
-        let mut problem = PatternControl {
-            constant: free_values(dofs, &base),
-            pattern: pattern_free,
-            dof,
-            coordinate: start,
-            coordinates: u.clone(),
-            asm,
-        };
-        let newton_settings = self.newton;
-        let length = model.size();
-        for step in 1..=steps {
-            let previous = problem.asm.x.clone();
-            let mut solve = |_: f64, to: f64| -> Result<usize, SolveError> {
-                problem.coordinate = start + to * control.displacement;
-                let saved = u.clone();
-                newton(&mut problem, &mut u, &newton_settings, length, &mut ws)
-                    .map(|r| r.iterations)
-                    .inspect_err(|_| u.clone_from(&saved))
-            };
-            let from = (step - 1) as f64 / steps as f64;
-            let to = step as f64 / steps as f64;
-            let (iterations, cut) = bisect(from, to, max_cuts, &mut solve, &|a, b| a + b).map_err(solve_error(
-                "static",
-                Some(self.recorded),
-                None,
-                self.structure,
+        let mut phase = ControlSteps {
+            solver: Solver::new(
+                u.clone(),
+                self.newton,
                 dofs,
-            ))?;
-            // The converged iterate was the last evaluated: the assembly is at `u`.
-            let lambda = u[dof];
-            self.summary.newton_iterations += iterations;
-            self.summary.cut_steps += usize::from(cut);
-            let applied = base.iter().zip(pattern).map(|(b, p)| b + p * lambda).collect();
-            self.advance(&problem.asm.x, applied, &previous);
-            self.record(&problem.asm, lambda, recorder)?;
+                model,
+                tangent_pattern(model, dofs).chain(pattern_rows),
+            ),
+            start,
+            displacement: control.displacement,
+            problem: PatternControl {
+                constant: free_values(dofs, &base),
+                pattern: pattern_free,
+                dof,
+                coordinate: start,
+                coordinates: u,
+                asm,
+            },
+        };
+        let lambda = self.run_phase(&mut phase, [&base, pattern], steps, max_cuts, recorder)?;
+        Ok((phase.problem.asm.x, lambda))
+    }
+}
+
+/// A phase of the static stage: a problem taken to a fraction of its way and solved.
+trait Phase {
+    /// Moves to fraction `to` and solves; on failure restores the last converged state.
+    /// Returns the Newton iterations.
+    fn solve_to(&mut self, to: f64) -> Result<usize, SolveError>;
+    /// The assembly at the last converged state (the last one evaluated).
+    fn asm(&self) -> &Assembly<'_>;
+    /// The factor on the phase's load pattern at the converged fraction `to`.
+    fn factor(&self, to: f64) -> f64;
+}
+
+/// The unknowns of a phase and what solves them.
+struct Solver {
+    u: Vec<f64>,
+    ws: NewtonWorkspace,
+    newton: NewtonSettings,
+    length: f64,
+}
+
+impl Solver {
+    fn new(
+        u: Vec<f64>,
+        newton: NewtonSettings,
+        dofs: &DofMap,
+        model: &crate::model::Model,
+        pattern: impl IntoIterator<Item = (usize, usize)>,
+    ) -> Self {
+        Solver {
+            ws: NewtonWorkspace::new(dofs.len(), &newton, false, || pattern),
+            u,
+            newton,
+            length: model.size(),
         }
-        Ok((problem.asm.x, u[dof]))
+    }
+
+    /// Newton on `problem` from the current unknowns; restores them on failure.
+    fn solve(&mut self, problem: &mut impl Residual) -> Result<usize, SolveError> {
+        let saved = self.u.clone();
+        newton(problem, &mut self.u, &self.newton, self.length, &mut self.ws)
+            .map(|r| r.iterations)
+            .inspect_err(|_| self.u.clone_from(&saved))
+    }
+}
+
+/// Load control: the load base + s × pattern at fraction s.
+struct LoadSteps<'a> {
+    problem: StaticEquilibrium<'a>,
+    solver: Solver,
+    base: Vec<f64>,
+    pattern: Vec<f64>,
+}
+
+impl Phase for LoadSteps<'_> {
+    fn solve_to(&mut self, to: f64) -> Result<usize, SolveError> {
+        for ((f, b), p) in self.problem.load.iter_mut().zip(&self.base).zip(&self.pattern) {
+            *f = b + p * to;
+        }
+        self.solver.solve(&mut self.problem)
+    }
+
+    fn asm(&self) -> &Assembly<'_> {
+        &self.problem.asm
+    }
+
+    fn factor(&self, to: f64) -> f64 {
+        to
+    }
+}
+
+/// Displacement control: the controlled coordinate at start + s × displacement, λ found.
+struct ControlSteps<'a> {
+    problem: PatternControl<'a>,
+    solver: Solver,
+    start: f64,
+    displacement: f64,
+}
+
+impl Phase for ControlSteps<'_> {
+    fn solve_to(&mut self, to: f64) -> Result<usize, SolveError> {
+        self.problem.coordinate = self.start + to * self.displacement;
+        self.solver.solve(&mut self.problem)
+    }
+
+    fn asm(&self) -> &Assembly<'_> {
+        &self.problem.asm
+    }
+
+    fn factor(&self, _to: f64) -> f64 {
+        self.solver.u[self.problem.dof]
     }
 }
 
