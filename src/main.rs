@@ -5,7 +5,7 @@
 use clap::{CommandFactory, Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use tsim::config::{bytes_text, ConfigError};
+use tsim::config::{bytes_text, json_schema, ConfigError};
 use tsim::run::{collect, default_jobs, install_interrupt, interrupted, load, run, Expanded, OnDisk, RunOptions, EXIT_INTERRUPTED};
 
 #[derive(Parser)]
@@ -57,6 +57,13 @@ enum Command {
         /// A run directory (OUT/<name>, holding summary.json).
         run_dir: PathBuf,
     },
+    /// Print the config's JSON Schema (draft 2020-12), for editors that complete and check
+    /// YAML keys; the repository keeps a copy in docs/tsim.schema.json.
+    Schema {
+        /// Write it to this file instead of standard output.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Print a completion script for a shell, e.g. `tsim completions bash >
     /// ~/.local/share/bash-completion/completions/tsim`.
     Completions { shell: clap_complete::Shell },
@@ -103,6 +110,19 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
+        Command::Schema { out } => {
+            let schema = json_schema();
+            match out {
+                None => print!("{schema}"),
+                Some(path) => {
+                    if let Err(e) = std::fs::write(&path, schema) {
+                        eprintln!("error: cannot write {}: {e}", path.display());
+                        return ExitCode::from(2);
+                    }
+                }
+            }
+            ExitCode::SUCCESS
+        }
         Command::Completions { shell } => {
             clap_complete::generate(shell, &mut Cli::command(), "tsim", &mut std::io::stdout());
             ExitCode::SUCCESS

@@ -27,7 +27,7 @@ pub const MAX_STEPS: u64 = 100_000_000;
 /// The `limits` section: raises (or lowers) the limits above. It belongs to the run, not
 /// to a case: only the top-level file's section counts, and it is left out of every case's
 /// resolved config (`case.yaml`), so that changing it never reruns a complete case.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LimitSpec {
     /// Estimated output of the whole run (every case's uncompressed result.h5 and replay.mcap) [GB].

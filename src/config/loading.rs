@@ -8,7 +8,7 @@ use super::materials::MaterialSpec;
 use super::schema::Axis;
 
 /// A force on each node of a set, scaled in time by `time` (static loads ignore `time`).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct NodalForceSpec {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -23,7 +23,7 @@ pub struct NodalForceSpec {
 }
 
 /// A factor f(t) of time within a stage.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum TimeFunctionSpec {
     /// 1 at every t.
@@ -59,7 +59,7 @@ pub enum TimeFunctionSpec {
 /// Uniform base (ground) acceleration a_g(t) = `acceleration` · f(t) [m/s²] of every
 /// support. The motion is solved relative to the moving base: each free DOF gets the
 /// inertia load −m a_g; positions and velocities are relative, reactions absolute.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct GroundMotionSpec {
     /// Peak or scale vector [m/s²].
@@ -68,7 +68,7 @@ pub struct GroundMotionSpec {
 }
 
 /// Where a transient starts, and what is added to that state.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct InitialSpec {
     /// The state taken: `equilibrium` (free vibration's default), `folded` (deployment's
@@ -88,7 +88,7 @@ pub struct InitialSpec {
     pub acceleration: InitialAcceleration,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum StartFrom {
     Equilibrium,
@@ -96,7 +96,7 @@ pub enum StartFrom {
     Previous,
 }
 
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum InitialAcceleration {
     #[default]
@@ -105,7 +105,7 @@ pub enum InitialAcceleration {
 }
 
 /// A vector on each node of a set.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct NodalVectorSpec {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -116,7 +116,7 @@ pub struct NodalVectorSpec {
 }
 
 /// A point mass on each node of a set [kg], added to the members' lumped masses.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PointMassSpec {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -128,7 +128,7 @@ pub struct PointMassSpec {
 
 /// A material for some members, by member id and/or member group; later entries
 /// override earlier ones, and all override `substitution.strut`/`.cable`.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct AssignSpec {
     /// Member ids.
@@ -154,7 +154,7 @@ pub struct AssignSpec {
 /// A static-load stage after substitution: nodal loads and gravity applied in load steps
 /// (or, with `control`, followed by the displacement of one node direction past limit
 /// points). The loads stay on in every later stage.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct StaticSpec {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -183,7 +183,7 @@ impl Default for StaticSpec {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ControlSpec {
     pub node: String,

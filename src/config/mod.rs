@@ -4,6 +4,7 @@
 //! field and the range, and all of them are reported, each at its line.
 
 mod build;
+mod json_schema;
 mod limits;
 mod loading;
 mod locate;
@@ -14,6 +15,7 @@ mod syntax;
 mod tables;
 mod validate;
 
+pub use json_schema::{json_schema, SCHEMA_FILE};
 pub use limits::{bytes_text, Estimate, LimitSpec, Limits, Part, MAX_MEMORY_GB, MAX_OUTPUT_GB, MAX_STEPS};
 pub use loading::*;
 pub use materials::{library, LawSpec, MaterialSpec};

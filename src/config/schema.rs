@@ -9,7 +9,7 @@ use crate::stage::measure::MeasureSpec;
 use std::collections::BTreeMap;
 
 /// One case: a model and the pipeline to run on it. A stage section left out is skipped.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CaseConfig {
     /// Case name (the sweep's name when the file has a `sweep`).
@@ -59,7 +59,7 @@ pub struct CaseConfig {
 }
 
 /// Either a generated tower or explicit nodes and members.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ModelSpec {
     #[serde(default)]
@@ -73,7 +73,7 @@ pub struct ModelSpec {
     pub groups: BTreeMap<String, Vec<String>>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Axis {
     X,
@@ -87,7 +87,7 @@ impl Axis {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct NodeSpec {
     pub id: String,
@@ -98,7 +98,7 @@ pub struct NodeSpec {
     pub fix: Vec<Axis>,
 }
 
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MemberSpec {
     pub id: String,
@@ -111,14 +111,14 @@ pub struct MemberSpec {
     pub rest_length: Option<f64>,
 }
 
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FormFindingSpec {
     #[serde(default)]
     pub measure: MeasureSpec,
 }
 
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SubstitutionSpec {
     /// Strut material name (library or `materials`).
@@ -143,7 +143,7 @@ fn one() -> f64 {
 }
 
 /// Which reading of the paper's "specific gravity" gives the masses.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum MassReading {
     /// Physical densities (aluminium 2700 kg/m³, rubber 1000 kg/m³).
@@ -171,7 +171,7 @@ impl MassReading {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct EigenSpec {
     /// Rayleigh damping for the damped transients; absent: eigen analysis only.
@@ -182,7 +182,7 @@ pub struct EigenSpec {
 /// Rayleigh damping: `alpha` and `beta` given, or from two modes (`modes`, 1-based, or
 /// `auto_modes`: the two modes with the largest effective modal mass along that axis)
 /// and their damping `ratios`.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(try_from = "RayleighRaw", into = "RayleighRaw")]
 pub enum RayleighSpec {
     Given { alpha: f64, beta: f64 },
@@ -192,7 +192,7 @@ pub enum RayleighSpec {
 
 /// The YAML form of [`RayleighSpec`]: every key, absent ones written as `null`, so that
 /// `case.yaml` (compared on resume) reads as it did before the enum.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 struct RayleighRaw {
     #[serde(default)]
@@ -289,7 +289,7 @@ impl From<RayleighSpec> for RayleighRaw {
 }
 
 /// A load on node groups.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LoadSpec {
     pub groups: Vec<String>,
@@ -306,7 +306,7 @@ fn step_profile() -> LoadProfile {
 }
 
 /// Free vibration or deployment. The Newmark keys default to [`NewmarkParams::default`].
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TransientSpec {
     /// Δt [s].
@@ -370,7 +370,7 @@ fn ten() -> usize {
 }
 
 /// Folding by prescribed displacement.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FoldSpec {
     #[serde(default = "ten")]
@@ -384,7 +384,7 @@ pub struct FoldSpec {
 }
 
 /// One group's prescribed direction, moved to `target`.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(try_from = "PrescribeRaw", into = "PrescribeRaw")]
 pub struct PrescribeSpec {
     pub group: String,
@@ -402,7 +402,7 @@ pub enum FoldTarget {
 
 /// The YAML form of [`PrescribeSpec`] (`to_base: true` or `displacement`), kept with
 /// every key so that `case.yaml` reads as it did before the enum.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 struct PrescribeRaw {
     group: String,
@@ -446,7 +446,7 @@ impl From<PrescribeSpec> for PrescribeRaw {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct OutputSpec {
     /// Record every n-th step of time-stepping stages.
@@ -482,7 +482,7 @@ impl Default for OutputSpec {
 }
 
 /// Sweep axes, expanded as a cross product in the order given (first axis slowest).
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SweepSpec {
     pub axes: Vec<SweepAxis>,
@@ -490,14 +490,14 @@ pub struct SweepSpec {
 
 /// One axis: a name for case ids and, per value, the settings it overrides, as dotted
 /// paths into the case config (e.g. `folding.steps: 20`).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SweepAxis {
     pub name: String,
     pub values: Vec<SweepValue>,
 }
 
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SweepValue {
     /// Label in case ids (letters, digits, `-`, `.`).

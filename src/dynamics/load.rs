@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 
 /// Time profile of the paper's launch load (the config's `load.profile`): kept as the
 /// spelling of that key; at run time it is a [`TimeFunction`].
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum LoadProfile {
     /// Full force for 0 ≤ t < duration, then none.

@@ -70,7 +70,7 @@ pub struct Integrator {
 /// objective: a rigidly rotating member gets an apparent axial rate (from the lagged or
 /// frozen direction) and a lateral force from K_G, so the path depends on Δt (measured on
 /// the paper's deployment: docs/validation.md). They are kept to reproduce the paper.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum DampingTangent {
     #[default]

@@ -18,7 +18,7 @@ use nalgebra::Vector3;
 use std::f64::consts::PI;
 
 /// Parameters of a generated tower. Every length is in metres.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TowerSpec {
     /// Struts per stage, n ≥ 3.

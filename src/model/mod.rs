@@ -15,7 +15,7 @@ pub use validate::ModelError;
 /// The three coordinate directions, for DOF labels and support flags.
 pub const AXES: [&str; 3] = ["x", "y", "z"];
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum MemberKind {
     /// Compression member (brown in the paper's figures).

@@ -1,7 +1,7 @@
 use super::linear::{dof_text, ratio_text, DenseSolver, LinearError, SparseSolver, TangentSink, TangentSolver};
 
 /// Convergence settings of the Newton-Raphson driver (one struct for every stage).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct NewtonSettings {
     /// Iteration cap; beyond it the solve fails (stages may then cut the step). Default 50:
@@ -33,7 +33,7 @@ pub struct NewtonSettings {
 /// an iteration reduces the residual less than [`REUSE_CONTRACTION`]-fold, the tangent is
 /// rebuilt and factored at the current iterate, which is then a full Newton iteration.
 /// The converged point meets the same tolerances either way.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum TangentUpdate {
     /// `reuse` in time-stepping stages, `full` in static ones (form-finding and folding
@@ -62,7 +62,7 @@ impl TangentUpdate {
 pub const REUSE_CONTRACTION: f64 = 0.1;
 
 /// Which linear solver Newton uses.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum LinearSolverChoice {
     /// Dense Cholesky (LU fallback) up to [`DENSE_LIMIT`] free DOFs, where a dense

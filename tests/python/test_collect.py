@@ -4,7 +4,6 @@ each result.h5 carries its sweep parameters as root attributes. Run from the rep
 root: .venv/bin/pytest tests/python
 """
 
-import json
 import subprocess
 from pathlib import Path
 
@@ -15,18 +14,12 @@ import xarray as xr
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def tsim_binary():
-    subprocess.run(["cargo", "build", "--release", "--bin", "tsim"], cwd=ROOT, check=True)
-    meta = subprocess.run(["cargo", "metadata", "--format-version", "1", "--no-deps"], cwd=ROOT, check=True, capture_output=True, text=True)
-    return Path(json.loads(meta.stdout)["target_directory"]) / "release" / "tsim"
 
-
-def test_collect_selects_by_a_swept_parameter(tmp_path):
-    tsim = tsim_binary()
+def test_collect_selects_by_a_swept_parameter(tmp_path, tsim_bin):
     config = ROOT / "tests" / "fixtures" / "small_sweep.yaml"
-    subprocess.run([tsim, "run", config, "--out", tmp_path, "--quiet"], check=True)
+    subprocess.run([tsim_bin, "run", config, "--out", tmp_path, "--quiet"], check=True)
     run_dir = tmp_path / "small"
-    res = subprocess.run([tsim, "collect", run_dir], capture_output=True, text=True)
+    res = subprocess.run([tsim_bin, "collect", run_dir], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
 
     ds = xr.open_dataset(run_dir / "collected.h5", engine="h5netcdf")
@@ -57,13 +50,12 @@ def test_collect_selects_by_a_swept_parameter(tmp_path):
     np.testing.assert_array_equal(attrs["set.eigen.rayleigh.ratios"], [0.1, 0.1])
 
     # A resume: every case still `complete`, now reused.
-    subprocess.run([tsim, "run", config, "--out", tmp_path, "--quiet"], check=True)
+    subprocess.run([tsim_bin, "run", config, "--out", tmp_path, "--quiet"], check=True)
     df = pd.read_csv(run_dir / "summary.csv")
     assert len(df[df.status == "complete"]) == 4 and (df.run == "reused").all()
 
 
-def test_collect_keeps_a_failed_case_and_lists_it(tmp_path):
-    tsim = tsim_binary()
+def test_collect_keeps_a_failed_case_and_lists_it(tmp_path, tsim_bin):
     text = (ROOT / "tests" / "fixtures" / "small_sweep.yaml").read_text()
     bad = text.replace(
         '- { label: "0.1", set: { eigen.rayleigh.ratios: [0.1, 0.1] } }',
@@ -72,9 +64,9 @@ def test_collect_keeps_a_failed_case_and_lists_it(tmp_path):
     assert bad != text
     config = tmp_path / "bad.yaml"
     config.write_text(bad)
-    run = subprocess.run([tsim, "run", config, "--out", tmp_path, "--quiet"], capture_output=True, text=True)
+    run = subprocess.run([tsim_bin, "run", config, "--out", tmp_path, "--quiet"], capture_output=True, text=True)
     assert run.returncode == 1
-    res = subprocess.run([tsim, "collect", tmp_path / "small"], capture_output=True, text=True)
+    res = subprocess.run([tsim_bin, "collect", tmp_path / "small"], capture_output=True, text=True)
     assert res.returncode == 1
     assert res.stderr.count("missing: ") == 2 and "failed: " in res.stderr
     ds = xr.open_dataset(tmp_path / "small" / "collected.h5", engine="h5netcdf")

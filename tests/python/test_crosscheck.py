@@ -11,7 +11,6 @@ Needs openseespy (and Debian's libblas3): `scripts/setup --opensees` installs bo
 .venv; scripts/test does so. Without them the test is skipped, saying so.
 """
 
-import json
 import subprocess
 import sys
 from pathlib import Path
@@ -76,13 +75,6 @@ def tolerance(quantity):
         return TOL_EQUILIBRIUM
     raise AssertionError(f"no tolerance for `{quantity}`")
 
-
-@pytest.fixture(scope="module")
-def tsim_bin():
-    subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
-    meta = subprocess.run(["cargo", "metadata", "--format-version", "1", "--no-deps"], cwd=ROOT, check=True,
-                          capture_output=True, text=True)
-    return Path(json.loads(meta.stdout)["target_directory"]) / "release" / "tsim"
 
 
 @pytest.mark.parametrize("name", xc.EXAMPLES)

@@ -7,7 +7,6 @@ The run is tests/fixtures/small_sweep.yaml (a 3-strut prism through every stage,
 well under a second) made by the release binary; drawing takes a few seconds per case.
 """
 
-import json
 import subprocess
 from pathlib import Path
 
@@ -44,15 +43,6 @@ SWEEP_SIZES = {"sweep_overview": (1200, 450)}
 MIN_VARIANCE = 1e-3
 MIN_COLOURED = 0.003
 
-
-@pytest.fixture(scope="session")
-def tsim_bin():
-    subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
-    meta = subprocess.run(
-        ["cargo", "metadata", "--format-version", "1", "--no-deps"],
-        cwd=ROOT, check=True, capture_output=True, text=True,
-    )
-    return Path(json.loads(meta.stdout)["target_directory"]) / "release" / "tsim"
 
 
 @pytest.fixture(scope="session")
