@@ -42,10 +42,16 @@ fn smaller_steps(stage: &str, source: &SolveError) -> String {
     let section = match stage {
         "static" | "folding" => format!("more `{stage}.steps`"),
         "free_vibration" | "deployment" => format!("a smaller `{stage}.dt`"),
+        "form-finding" => return FORM_FINDING_HINT.into(),
         _ => return String::new(),
     };
     format!("; or take smaller steps: {section}, or more halvings of a failed step (`{stage}.max_cuts`)")
 }
+
+/// Form-finding takes no steps: it starts from the model's coordinates, and its measure
+/// potentials set how hard each member pulls towards balance.
+const FORM_FINDING_HINT: &str = "; or start closer to a balanced shape (the model's coordinates, or `model.tower.overlap`), \
+     or change the measure potentials (`formfinding.measure`: `cable_c`, `cable_n`, `strut_ea`)";
 
 fn step_text(step: Option<usize>, time: Option<f64>) -> String {
     match (step, time) {
@@ -61,7 +67,8 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 mod tests {
     use super::*;
 
-    /// A stepped stage's failure names the settings for smaller steps; form-finding's does not.
+    /// A stepped stage's failure names the settings for smaller steps; form-finding's names
+    /// its start and its measure potentials instead.
     #[test]
     fn stepped_stages_suggest_smaller_steps() {
         let source = || SolveError::NotConverged {
@@ -92,6 +99,8 @@ mod tests {
         );
         assert!(text("folding").contains("more `folding.steps`") && text("folding").contains("`folding.max_cuts`"));
         assert!(text("static").contains("`static.max_cuts`"));
-        assert!(!text("form-finding").contains("smaller steps"));
+        let form_finding = text("form-finding");
+        assert!(!form_finding.contains("smaller steps"), "{form_finding}");
+        assert!(form_finding.contains("`formfinding.measure`") && form_finding.contains("`model.tower.overlap`"), "{form_finding}");
     }
 }

@@ -6,7 +6,7 @@ use clap::{CommandFactory, Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tsim::config::{bytes_text, json_schema, ConfigError};
-use tsim::run::{collect, default_jobs, install_interrupt, interrupted, load, run, Expanded, OnDisk, RunOptions, EXIT_INTERRUPTED};
+use tsim::run::{collect, default_jobs, install_interrupt, interrupted, load, run, Expanded, OnDisk, RunOptions, Tally, EXIT_INTERRUPTED};
 
 #[derive(Parser)]
 #[command(
@@ -197,14 +197,10 @@ fn main() -> ExitCode {
             match run(&name, &cases, &opts) {
                 Ok(outcomes) => {
                     let failed = outcomes.iter().filter(|o| o.failed()).count();
-                    eprintln!(
-                        "{} case(s): {} failed; results in {}",
-                        outcomes.len(),
-                        failed,
-                        opts.out.join(&name).display()
-                    );
+                    let tally = Tally(&outcomes);
+                    eprintln!("{}; results in {}", tally.line(), opts.out.join(&name).display());
                     if interrupted() {
-                        eprintln!("interrupted: cases not complete are marked `interrupted`; rerun to finish them");
+                        eprintln!("{}", tally.interrupted());
                         ExitCode::from(EXIT_INTERRUPTED)
                     } else if failed > 0 {
                         ExitCode::from(1)

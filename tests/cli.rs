@@ -557,13 +557,19 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
             "1",
             "--quiet",
         ];
-        let mut child = spawn(Command::new(env!("CARGO_BIN_EXE_tsim")).args(args));
+        let child = spawn(Command::new(env!("CARGO_BIN_EXE_tsim")).args(args).stderr(std::process::Stdio::piped()));
         std::thread::sleep(Duration::from_millis(500));
         let killed = Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap();
         assert!(killed.success());
-        let status = child.wait().unwrap();
-        assert_eq!(status.code(), Some(130), "{signal}");
+        let output = child.wait_with_output().unwrap();
+        assert_eq!(output.status.code(), Some(130), "{signal}");
+        // It says so, names the complete cases and what a rerun does.
+        let err = String::from_utf8_lossy(&output.stderr);
+        assert!(err.contains("interrupted: ") && err.contains("Rerunning the same command reuses"), "{err}");
         let o = outcomes(&dir);
+        for case in o.iter().filter(|c| c["status"] == "complete") {
+            assert!(err.contains(case["id"].as_str().unwrap()), "{err}");
+        }
         assert_eq!(o.len(), 4);
         assert!(o.iter().any(|c| c["status"] == "interrupted"), "{signal}: {o:?}");
         for case in o.iter().filter(|c| c["status"] == "interrupted") {

@@ -385,3 +385,52 @@ fn execute(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Re
     recorder.finish(&outcome).map_err(|e| format!("cannot finish outputs: {e}"))?;
     result
 }
+
+/// What a run did, in the closing message: how many cases stand complete (computed now or
+/// reused), failed, interrupted or pending, and, after an interruption, which are complete
+/// and what a rerun does.
+pub struct Tally<'a>(pub &'a [CaseOutcome]);
+
+impl Tally<'_> {
+    fn count(&self, f: impl Fn(&CaseOutcome) -> bool) -> usize {
+        self.0.iter().filter(|o| f(o)).count()
+    }
+
+    /// The one-line tally: "27 case(s): 10 complete (3 computed, 7 reused), 2 failed, ...".
+    pub fn line(&self) -> String {
+        let of = |s: CaseStatus| self.count(|o| o.status == s);
+        let computed = self.count(|o| o.status == CaseStatus::Complete && o.run == RunKind::Computed);
+        let mut parts = vec![format!(
+            "{} complete ({computed} computed, {} reused)",
+            of(CaseStatus::Complete),
+            of(CaseStatus::Complete) - computed
+        )];
+        parts.push(format!("{} failed", of(CaseStatus::Failed)));
+        for status in [CaseStatus::Interrupted, CaseStatus::Pending] {
+            if of(status) > 0 {
+                parts.push(format!("{} {status}", of(status)));
+            }
+        }
+        format!("{} case(s): {}", self.0.len(), parts.join(", "))
+    }
+
+    /// After an interruption: the complete cases by id (up to ten, else their number), and
+    /// what rerunning the same command does.
+    pub fn interrupted(&self) -> String {
+        let complete: Vec<&str> = self
+            .0
+            .iter()
+            .filter(|o| o.status == CaseStatus::Complete)
+            .map(|o| o.id.as_str())
+            .collect();
+        let named = match complete.len() {
+            0 => "no case is complete".to_string(),
+            1..=10 => format!("complete: {}", complete.join(", ")),
+            n => format!("{n} cases are complete (summary.csv lists them)"),
+        };
+        format!(
+            "interrupted: {named}; the others are marked `interrupted` (or `pending`, or `failed`), \
+             never complete. Rerunning the same command reuses the complete cases and runs the rest."
+        )
+    }
+}

@@ -257,8 +257,9 @@ impl SolveError {
                     ),
                 };
                 format!(
-                    "Newton did not converge in {iterations} iterations: {what}; largest residual at {}; \
+                    "Newton did not converge in {iterations} iteration{}: {what}; largest residual at {}; \
                      raise {setting} or `newton.max_iterations`",
+                    if iterations == 1 { "" } else { "s" },
                     at(Some(worst_dof))
                 )
             }
