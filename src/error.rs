@@ -101,6 +101,9 @@ mod tests {
         assert!(text("static").contains("`static.max_cuts`"));
         let form_finding = text("form-finding");
         assert!(!form_finding.contains("smaller steps"), "{form_finding}");
-        assert!(form_finding.contains("`formfinding.measure`") && form_finding.contains("`model.tower.overlap`"), "{form_finding}");
+        assert!(
+            form_finding.contains("`formfinding.measure`") && form_finding.contains("`model.tower.overlap`"),
+            "{form_finding}"
+        );
     }
 }

@@ -557,7 +557,11 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
             "1",
             "--quiet",
         ];
-        let child = spawn(Command::new(env!("CARGO_BIN_EXE_tsim")).args(args).stderr(std::process::Stdio::piped()));
+        let child = spawn(
+            Command::new(env!("CARGO_BIN_EXE_tsim"))
+                .args(args)
+                .stderr(std::process::Stdio::piped()),
+        );
         std::thread::sleep(Duration::from_millis(500));
         let killed = Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap();
         assert!(killed.success());
@@ -565,7 +569,10 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
         assert_eq!(output.status.code(), Some(130), "{signal}");
         // It says so, names the complete cases and what a rerun does.
         let err = String::from_utf8_lossy(&output.stderr);
-        assert!(err.contains("interrupted: ") && err.contains("Rerunning the same command reuses"), "{err}");
+        assert!(
+            err.contains("interrupted: ") && err.contains("Rerunning the same command reuses"),
+            "{err}"
+        );
         let o = outcomes(&dir);
         for case in o.iter().filter(|c| c["status"] == "complete") {
             assert!(err.contains(case["id"].as_str().unwrap()), "{err}");

@@ -3,9 +3,9 @@
 //!
 //! Topics (protobuf, zstd-compressed chunks):
 //! - `/tsim/scene` (`foxglove.SceneUpdate`): one entity `tensegrity` in frame `world`:
-//!   struts and cables as `LINE_LIST` primitives coloured by force (tension pale to full red,
-//!   compression pale to full blue, each scale topped by the step's largest force of its
-//!   sign; slack grey), a sphere at every free node, a cube at every supported one, and a
+//!   struts and cables as `LINE_LIST` primitives coloured by force (tension grey-red to full
+//!   red, compression grey-blue to full blue, each scale topped by the step's largest force
+//!   of its sign; slack grey), a sphere at every free node, a cube at every supported one, and a
 //!   legend text with the scales' maxima.
 //! - `/tsim/energy` (`energy.Energy`): kinetic, strain, damping, external and total energy.
 //! - `/tsim/members` (`memberforces.MemberForces`): every member's id and force; in a Plot
@@ -75,10 +75,12 @@ const BLUE: Color = Color {
     b: 0.90,
     a: 1.0,
 };
+/// Slack members, and where the force scales start: a mid grey, so that a faint force is
+/// still seen on Foxglove's light theme (a pale tint of white was not).
 const GREY: Color = Color {
-    r: 0.60,
-    g: 0.60,
-    b: 0.60,
+    r: 0.55,
+    g: 0.55,
+    b: 0.55,
     a: 1.0,
 };
 const GOLD: Color = Color {
@@ -99,15 +101,18 @@ const PURPLE: Color = Color {
     b: 0.80,
     a: 1.0,
 };
-const WHITE: Color = Color {
-    r: 1.0,
-    g: 1.0,
-    b: 1.0,
+/// Legend text: a teal of relative luminance 0.18, 4.6:1 against both black and white
+/// (WCAG's 4.5:1 for text), readable on Foxglove's dark and light themes alike (white
+/// text vanished on the light one).
+const TEXT: Color = Color {
+    r: 0.0,
+    g: 0.515,
+    b: 0.515,
     a: 1.0,
 };
 
-/// Colour of a line state: 0 slack (grey), 1..=LEVELS tension (pale to full red),
-/// LEVELS+1..=2·LEVELS compression (pale to full blue).
+/// Colour of a line state: 0 slack (grey), 1..=LEVELS tension (grey-red to full red),
+/// LEVELS+1..=2·LEVELS compression (grey-blue to full blue).
 fn state_colour(state: usize) -> Color {
     if state == 0 {
         return GREY;
@@ -116,9 +121,9 @@ fn state_colour(state: usize) -> Color {
     let s = level as f64 / LEVELS as f64;
     let mix = |w: f64, c: f64| s * c + (1.0 - s) * w;
     Color {
-        r: mix(WHITE.r, full.r),
-        g: mix(WHITE.g, full.g),
-        b: mix(WHITE.b, full.b),
+        r: mix(GREY.r, full.r),
+        g: mix(GREY.g, full.g),
+        b: mix(GREY.b, full.b),
         a: 1.0,
     }
 }
@@ -529,7 +534,7 @@ impl McapRecorder {
             billboard: true,
             font_size: LEGEND_FONT,
             scale_invariant: true,
-            color: Some(WHITE),
+            color: Some(TEXT),
             text,
         };
         let timestamp = Timestamp::new((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32);
@@ -760,6 +765,30 @@ impl Drop for McapRecorder {
 
 #[cfg(test)]
 mod tests {
+    /// WCAG 2 relative luminance of an sRGB colour.
+    fn luminance(c: Color) -> f64 {
+        let lin = |v: f64| if v <= 0.04045 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) };
+        0.2126 * lin(c.r) + 0.7152 * lin(c.g) + 0.0722 * lin(c.b)
+    }
+
+    /// Contrast against the darker of black and white backgrounds, whichever is worse.
+    fn worst_contrast(c: Color) -> f64 {
+        let l = luminance(c);
+        f64::min((l + 0.05) / 0.05, 1.05 / (l + 0.05))
+    }
+
+    /// Foxglove's 3-D panel is near black on the dark theme and near white on the light
+    /// one: the legend must read on both (WCAG 4.5:1 for text) and every member's colour
+    /// must stand out on both (3:1, WCAG's non-text contrast).
+    #[test]
+    fn legend_and_members_read_on_dark_and_light_themes() {
+        assert!(worst_contrast(TEXT) >= 4.5, "legend: {}", worst_contrast(TEXT));
+        for state in 0..=2 * LEVELS {
+            let c = worst_contrast(state_colour(state));
+            assert!(c >= 3.0, "line state {state}: {c}");
+        }
+    }
+
     use super::*;
     use crate::model::generate::TowerSpec;
     use crate::output::h5::tests::{drive, temp_path};
