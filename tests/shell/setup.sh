@@ -23,7 +23,7 @@ mkdir -p "$fake/include" "$fake/lib"
 touch "$fake/include/hdf5.h" "$fake/include/hdf5_hl.h" "$fake/lib/libhdf5.so" "$fake/lib/libhdf5_hl.so"
 
 failures=0
-# run <name> <expected exit> <expected text...> -- <env assignments...>
+# run <name> <expected exit> <expected text...> -- <env assignments...>; SETUP_ARGS: its arguments
 run() {
   local name=$1 want=$2; shift 2
   local texts=()
@@ -32,7 +32,7 @@ run() {
   : >"$tmp/apt.log"
   local rc=0
   env -u HDF5_DIR -u HDF5_ROOT -u CONDA_PREFIX -u LD_LIBRARY_PATH APT_LOG="$tmp/apt.log" \
-    PATH="$stubs:$PATH" "$@" scripts/setup >"$tmp/out" 2>&1 || rc=$?
+    PATH="$stubs:$PATH" "$@" scripts/setup ${SETUP_ARGS:-} >"$tmp/out" 2>&1 || rc=$?
   local ok=1
   [ "$rc" = "$want" ] || ok=0
   for t in "${texts[@]}"; do grep -qF -- "$t" "$tmp/out" "$tmp/apt.log" || { ok=0; echo "  missing: $t"; }; done
@@ -55,5 +55,41 @@ stub rustc 'echo "rustc 1.63.0"'
 run "Debian's rustc 1.63: rustup named" 1 "older than tsim's minimum" "rustup" -- HDF5_DIR="$fake"
 rm "$stubs/rustc"
 run "root without HDF5: apt installs libhdf5-dev" 0 "apt-get install -y -qq libhdf5-dev pkg-config" -- FAKE_UID=0
+
+# No C compiler: PATH holds the stubs and links to every system tool but the C compilers.
+nocc="$tmp/nocc"
+mkdir -p "$nocc"
+for f in /usr/bin/*; do
+  case "${f##*/}" in cc | gcc | gcc-* | c89* | c99* | *-linux-gnu-gcc*) ;; *) ln -s "$f" "$nocc/" ;; esac
+done
+run "no C compiler, no root: names build-essential" 1 "build-essential" "module load gcc" -- \
+  HDF5_DIR="$fake" PATH="$stubs:$nocc"
+
+# --user-hdf5: apt-get download (stubbed: copies two fake .debs built here) and dpkg-deb -x
+# into .local/hdf5 of a copy of the checkout, never as root, never apt-get install.
+pkgroot="$tmp/pkg"
+mkdir -p "$pkgroot/dev/DEBIAN" "$pkgroot/dev/usr/include/hdf5/serial" "$pkgroot/dev/usr/lib/x86_64-linux-gnu/hdf5/serial" \
+  "$pkgroot/rt/DEBIAN" "$pkgroot/rt/usr/lib/x86_64-linux-gnu"
+touch "$pkgroot/dev/usr/include/hdf5/serial/hdf5.h" "$pkgroot/dev/usr/include/hdf5/serial/hdf5_hl.h" \
+  "$pkgroot/rt/usr/lib/x86_64-linux-gnu/libhdf5_serial_hl.so.100"
+ln -s ../../../../include/hdf5/serial "$pkgroot/dev/usr/lib/x86_64-linux-gnu/hdf5/serial/include"
+ln -s . "$pkgroot/dev/usr/lib/x86_64-linux-gnu/hdf5/serial/lib"
+ln -s ../../libhdf5_serial_hl.so.100 "$pkgroot/dev/usr/lib/x86_64-linux-gnu/hdf5/serial/libhdf5_hl.so"
+printf 'Package: libhdf5-dev\nVersion: 1\nArchitecture: all\nMaintainer: t <t@t>\nDescription: t\n' >"$pkgroot/dev/DEBIAN/control"
+printf 'Package: libhdf5-hl-100\nVersion: 1\nArchitecture: all\nMaintainer: t <t@t>\nDescription: t\n' >"$pkgroot/rt/DEBIAN/control"
+dpkg-deb -b "$pkgroot/dev" "$tmp/libhdf5-dev.deb" >/dev/null
+dpkg-deb -b "$pkgroot/rt" "$tmp/libhdf5-hl-100.deb" >/dev/null
+stub apt-cache 'echo "libhdf5-dev"; echo "  Depends: libhdf5-hl-100"; echo "  Depends: zlib1g-dev"'
+stub apt-get "echo \"apt-get \$*\" >>\"\$APT_LOG\"; case \"\$1\" in -s) echo 'Inst libhdf5-hl-100 (1 Debian:12)';; download) cp $tmp/*.deb .;; esac"
+checkout="$tmp/checkout"
+mkdir -p "$checkout/scripts" && cp scripts/setup "$checkout/scripts/" && cp Cargo.toml "$checkout/"
+pushd "$checkout" >/dev/null
+SETUP_ARGS=--user-hdf5 run "--user-hdf5: Debian's HDF5 unpacked without root" 0 \
+  "unpacked Debian's HDF5 (2 packages, no root)" ". .local/hdf5/env" "apt-get download -q libhdf5-dev libhdf5-hl-100" \
+  "using HDF5 from HDF5_DIR=$checkout/.local/hdf5/root/usr/lib/x86_64-linux-gnu/hdf5/serial" --
+popd >/dev/null
+grep -q "apt-get install" "$tmp/apt.log" && { echo "FAIL --user-hdf5 called apt-get install"; failures=$((failures + 1)); }
+grep -qF "export LD_LIBRARY_PATH=\"$checkout/.local/hdf5/root/usr/lib/x86_64-linux-gnu:" "$checkout/.local/hdf5/env" ||
+  { echo "FAIL --user-hdf5: env file"; cat "$checkout/.local/hdf5/env"; failures=$((failures + 1)); }
 
 [ "$failures" = 0 ] || { echo "$failures failure(s)"; exit 1; }
