@@ -54,6 +54,12 @@ no_apt_call "HDF5_ROOT"
 stub rustc 'echo "rustc 1.63.0"'
 run "Debian's rustc 1.63: rustup named" 1 "older than tsim's minimum" "rustup" -- HDF5_DIR="$fake"
 rm "$stubs/rustc"
+# rustup's minimal profile: no rustfmt; setup adds it (and clippy) with rustup, as the user.
+real_cargo=$(command -v cargo)
+stub cargo "[ \"\$1\" = fmt ] && exit 1; exec $real_cargo \"\$@\""
+stub rustup 'echo "rustup $*" >>"$APT_LOG"'
+run "rustfmt missing: rustup component add" 0 "rustup component add rustfmt clippy" -- HDF5_DIR="$fake"
+rm "$stubs/cargo" "$stubs/rustup"
 run "root without HDF5: apt installs libhdf5-dev" 0 "apt-get install -y -qq libhdf5-dev pkg-config" -- FAKE_UID=0
 
 # No C compiler: PATH holds the stubs and links to every system tool but the C compilers.
