@@ -55,6 +55,8 @@ pub struct Rigidity {
     pub rigid_body_modes: usize,
     /// Orthonormal self-stress basis, b × s (member forces up to scale).
     pub self_stress: Mat<f64>,
+    /// (node, axis) of each free DOF: the rows of A and of the mechanisms.
+    pub dofs: Vec<(usize, usize)>,
     /// Orthonormal basis of the internal mechanisms, n_f × (m − rigid_body_modes): the
     /// mechanisms orthogonal to the rigid-body motions, ordered by prestress stiffness.
     pub mechanisms: Mat<f64>,
@@ -72,6 +74,42 @@ impl Rigidity {
     /// Internal mechanisms, m less the rigid-body motions.
     pub fn internal_mechanisms(&self) -> usize {
         self.m - self.rigid_body_modes
+    }
+}
+
+/// The key figures of an analysis for a case summary, or why it was skipped.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Summary {
+    pub rank: usize,
+    pub s: usize,
+    pub m: usize,
+    pub rigid_body_modes: usize,
+    pub m_internal: usize,
+    pub prestress_stable: bool,
+    pub super_stable: bool,
+    /// Why there is no analysis (a model above the dense limit); the figures are then 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skipped: Option<String>,
+}
+
+impl Summary {
+    pub fn new(analysis: &Result<Rigidity, RigidityError>) -> Self {
+        match analysis {
+            Ok(r) => Summary {
+                rank: r.rank,
+                s: r.s,
+                m: r.m,
+                rigid_body_modes: r.rigid_body_modes,
+                m_internal: r.internal_mechanisms(),
+                prestress_stable: r.stability.prestress_stable,
+                super_stable: r.stability.super_stable,
+                skipped: None,
+            },
+            Err(e) => Summary {
+                skipped: Some(e.to_string()),
+                ..Summary::default()
+            },
+        }
     }
 }
 
@@ -109,6 +147,7 @@ pub fn analyse(model: &Model, x: &[Vector3<f64>], prestress: Option<&[f64]>) -> 
         m: n - rank,
         rigid_body_modes: rigid.ncols(),
         self_stress,
+        dofs: (0..n).map(|i| dofs.owner(i)).collect(),
         mechanisms,
         proper_self_stress,
         self_stress_source,
