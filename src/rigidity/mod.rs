@@ -8,7 +8,7 @@
 //! mechanisms ([`stability`]).
 //!
 //! Dense: A is n_f × b and its full SVD costs O(n³); [`MAX_DENSE`] bounds the larger
-//! dimension (the paper's tower: 52 × 60).
+//! dimension (the paper's tower: 52 × 50).
 
 mod proper;
 mod stability;
@@ -20,10 +20,11 @@ use crate::tsm::DofMap;
 use faer::Mat;
 use nalgebra::Vector3;
 
-/// Largest number of free DOFs or members analysed: the full SVD of a 2000 × 2000 matrix
-/// takes seconds on one core and 32 MB per factor (bench/rigidity.md); above this the
-/// analysis is refused rather than stalling a case.
-pub const MAX_DENSE: usize = 2000;
+/// Largest number of free DOFs or members analysed. The full SVD (both factors: the
+/// self-stress and mechanism bases need them) is O(n³): a 12-strut tower of 1425 free DOFs
+/// takes 7 s, one of 1929 21 s on the shared 2-core machine (bench/rigidity.md); above
+/// 1500 the analysis is skipped with this reason rather than stalling a case.
+pub const MAX_DENSE: usize = 1500;
 
 /// Why the analysis could not be made.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -63,7 +64,8 @@ pub struct Rigidity {
     /// The self-stress compatible with the member kinds (struts compressed, cables
     /// tensioned), scaled to max |t| = 1, if one was found ([`proper`]).
     pub proper_self_stress: Option<Vec<f64>>,
-    /// How the self-stress for the stability test was chosen, or why none was.
+    /// How the proper self-stress was found, or why none was. The stability test uses the
+    /// state's prestress when it has one, else the proper self-stress.
     pub self_stress_source: String,
     /// ‖A t‖/‖t‖ of the prestress the state was given with (0 without one).
     pub prestress_residual: f64,
@@ -132,13 +134,10 @@ pub fn analyse(model: &Model, x: &[Vector3<f64>], prestress: Option<&[f64]>) -> 
     let all_mechanisms = svd.U().subcols(rank, n - rank).to_owned();
     let rigid = rigid_motions(model, &dofs, x);
     let internal = complement(&all_mechanisms, &rigid);
-    let (proper_self_stress, found) = proper::self_stress(model, x, &self_stress, prestress);
-    let (stress, self_stress_source) = match (prestress, &proper_self_stress) {
-        (Some(t), _) => (Some(t.to_vec()), "the state's prestress".to_string()),
-        (None, Some(t)) => (Some(t.clone()), found),
-        (None, None) => (None, found),
-    };
-    let (stability, mechanisms) = stability::test(model, &dofs, x, stress.as_deref(), internal);
+    let (proper_self_stress, self_stress_source) = proper::self_stress(model, x, &self_stress, prestress);
+    // The stability test takes the stress the state carries, else the proper self-stress.
+    let stress = prestress.or(proper_self_stress.as_deref());
+    let (stability, mechanisms) = stability::test(model, &dofs, x, stress, internal);
     Ok(Rigidity {
         singular_values,
         tolerance,

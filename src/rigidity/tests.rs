@@ -217,5 +217,5 @@ fn models_beyond_the_dense_limit_are_refused() {
     model.members = vec![template; MAX_DENSE + 1];
     let err = analyse(&model, &model.positions(), None).unwrap_err();
     assert!(matches!(err, RigidityError::TooLarge { members, .. } if members == MAX_DENSE + 1));
-    assert!(err.to_string().contains("dense limit of 2000"));
+    assert!(err.to_string().contains("dense limit of 1500"));
 }
