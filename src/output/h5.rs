@@ -860,6 +860,9 @@ pub(super) mod tests {
             positions: &x0,
             forces: &forces,
         })?;
+        // The analysis itself is tested in crate::rigidity; here it is only written.
+        let analysis = crate::rigidity::analyse(model, &x0, None).map_err(|e| e.to_string())?;
+        rec.rigidity(&RigidityRecord { analysis: Ok(&analysis) })?;
         let shapes = vec![vec![Vector3::new(0.0, 0.0, 1.0); n]; 4];
         rec.eigen(&EigenRecord {
             omega2: &[1.0, 4.0, 9.0, 16.0],
@@ -1000,7 +1003,27 @@ pub(super) mod tests {
             file.dataset("folding/equilibrium_error").unwrap().read_raw::<f64>().unwrap()[4],
             1e-12 * 10.0
         );
-        for group in ["model", "formfinding", "eigen", "free_vibration", "folding", "deployment"] {
+        assert_eq!(
+            file.dataset("structure_analysis/mechanism").unwrap().shape(),
+            vec![
+                3 * n - model.support_count(),
+                file.group("structure_analysis")
+                    .unwrap()
+                    .attr("m_internal")
+                    .unwrap()
+                    .read_scalar::<i64>()
+                    .unwrap() as usize
+            ]
+        );
+        for group in [
+            "model",
+            "formfinding",
+            "structure_analysis",
+            "eigen",
+            "free_vibration",
+            "folding",
+            "deployment",
+        ] {
             let g = file.group(group).unwrap();
             for name in g.member_names().unwrap() {
                 let ds = g.dataset(&name).unwrap();
