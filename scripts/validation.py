@@ -610,6 +610,45 @@ def open_parameters(paper, paper_a0, force, default_gm, physical):
 """
 
 
+def structure_section(case_dir):
+    """The equilibrium-matrix analysis of the paper's equilibrium (/structure_analysis)."""
+    with h5py.File(case_dir / "result.h5", "r") as f:
+        g = f["structure_analysis"]
+        a = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
+        sv = g["singular_value"][:]
+        stiffness = g["mechanism_stiffness"][:]
+        n_f, b = len(g["dof"]), len(g["member"])
+    r = int(a["rank"])
+    gap = sv[r - 1] / sv[r] if r < len(sv) and sv[r] > 0 else float("inf")
+    rows = [
+        ("free DOFs × members", f"{n_f} × {b}", ""),
+        ("rank r of A (tolerance)", f"{r} ({a['rank_tolerance']:.2g})", "σ_r = " + f"{sv[r - 1]:.3g}"
+         + (f", σ_(r+1) = {sv[r]:.2g}: gap {gap:.2g}" if r < len(sv) else "")),
+        ("self-stress states s = b − r", f"{a['s']}", a["self_stress_source"]),
+        ("mechanisms m = n_f − r (rigid-body)", f"{a['m']} ({a['rigid_body_modes']})", "m − s = n_f − b"),
+        ("prestress stiffness of the mechanisms", ", ".join(f"{x:.4g}" for x in stiffness) + " N/m",
+         f"positive above {a['stiffness_tolerance']:.2g} N/m"),
+        ("prestress stable", "yes" if a["prestress_stable"] else "no", ""),
+        ("super stable", "yes" if a["super_stable"] else "no", a["super_stability"]),
+    ]
+    return f"""## 9. Structure analysis: self-stress, mechanisms, stability (configs/paper.yaml)
+
+The equilibrium-matrix analysis of the equilibrium the dynamic stages start from, with the
+substituted prestress (`/structure_analysis` of result.h5; `src/rigidity/`). The same figures
+are checked against an independent NumPy SVD, K_G and stress matrix in
+tests/python/test_rigidity.py; the closed forms (regular n-prisms: s = 1, m = 2n − 5 plus 6
+rigid-body modes, prestress and super stable at the twist π/2 − π/n, s = 0 and not stable
+10° away, not stable with the prestress reversed; Snelson's X-module: s = 1, m = 0 in the
+plane, its self-stress t_strut = −√2 t_cable) in `src/rigidity/tests.rs`.
+
+{table(['quantity', 'measured', 'note'], rows)}
+Criteria: prestress stable = a proper stress (struts compressed, cables tensioned) with
+Q = Mᵀ K_G M positive definite on the internal mechanisms M (Connelly & Whiteley 1996);
+super stable = proper stress, stress matrix Ω positive semidefinite of nullity d + 1 = 4,
+member directions not on a conic at infinity (Connelly 1982; Connelly & Guest 2022).
+"""
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--keep", type=Path, help="run in this directory and keep it (default: a temporary one)")
@@ -658,7 +697,8 @@ rerun `scripts/validation` (a few minutes on 2 cores).
 {checks_section(paper)}
 {literal_section(literal, paper_case)}
 {FIGURES}
-{open_parameters(paper, paper_a0, force, next(r["gm_soft"] for r in rows if r["a0"] == 50e-6), physical)}""")
+{open_parameters(paper, paper_a0, force, next(r["gm_soft"] for r in rows if r["a0"] == 50e-6), physical)}
+{structure_section(paper_case["dir"])}""")
     print(f"wrote {DOC.relative_to(ROOT)} and {IMG.relative_to(ROOT)}/", file=sys.stderr)
 
 

@@ -24,6 +24,10 @@ pub enum Error {
     Substitution { member: String, reason: String },
     #[error("{stage}: {reason}")]
     Stage { stage: &'static str, reason: String },
+    /// A failure and what the analysis of the layout says about it (form-finding of a
+    /// layout without a proper self-stress).
+    #[error("{source}; {note}")]
+    Explained { source: Box<Error>, note: String },
     #[error("{stage}: recording failed: {source}")]
     Record {
         stage: &'static str,

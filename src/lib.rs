@@ -17,6 +17,7 @@ pub mod model;
 pub mod output;
 pub mod pipeline;
 pub mod record;
+pub mod rigidity;
 pub mod run;
 pub mod solve;
 pub mod stage;

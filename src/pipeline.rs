@@ -5,10 +5,11 @@
 use crate::config::{CaseConfig, StartFrom, TransientSpec};
 use crate::error::{Error, Result};
 use crate::model::{shape_error, Model};
-use crate::record::{Constraints, FormFindRecord, ModelRecord, Recorder, Stage};
+use crate::record::{Constraints, FormFindRecord, ModelRecord, Recorder, RigidityRecord, Stage};
+use crate::rigidity::{self, Rigidity, RigidityError};
 use crate::stage::eigen::EigenSummary;
 use crate::stage::fold::{FoldSummary, Folding};
-use crate::stage::formfind::{FormFindSummary, SelfEquilibrium};
+use crate::stage::formfind::{explain_failure, FormFindSummary, SelfEquilibrium};
 use crate::stage::static_load::StaticSummary;
 use crate::stage::substitute::{balanced_forces, SubstitutionSummary};
 use crate::stage::transient::TransientSummary;
@@ -25,6 +26,9 @@ pub struct CaseSummary {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub equilibrium: Option<FormFindSummary>,
     pub substitution: SubstitutionSummary,
+    /// The equilibrium-matrix analysis of the equilibrium (s, m, stability).
+    #[serde(default)]
+    pub structure_analysis: rigidity::Summary,
     /// Gravity and static loads.
     #[serde(default, rename = "static", skip_serializing_if = "Option::is_none")]
     pub statics: Option<StaticSummary>,
@@ -68,7 +72,17 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     summary.substitution = SubstitutionSummary::new(&structure, &unloaded)?;
     summary.substitution.require_stable(cfg.substitution.allow_unstable)?;
     let folding = cfg.folding(&model)?;
+    let analysis = analyse(&structure, &unloaded);
+    summary.structure_analysis = rigidity::Summary::new(&analysis);
     record_structure(recorder, &structure, &unloaded, &found, cfg.masses.as_str(), folding.as_ref())?;
+    let skipped = analysis.as_ref().map_err(ToString::to_string);
+    let record = RigidityRecord {
+        analysis: skipped.as_ref().map_err(String::as_str).copied(),
+    };
+    recorder.rigidity(&record).map_err(|source| Error::Record {
+        stage: "structure_analysis",
+        source,
+    })?;
     lap(&mut summary, found.stage);
     match found.stage {
         Stage::FormFinding => summary.formfinding = Some(found.summary),
@@ -118,6 +132,15 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     Ok(summary)
 }
 
+/// The equilibrium-matrix analysis at the equilibrium `state` with the real structure's
+/// prestress there. Form-finding's measure structure has the same shape and, substitution
+/// keeping the force ratios, a positive multiple of the same stress: one analysis covers
+/// both.
+fn analyse(structure: &Structure, state: &State) -> Result<Rigidity, RigidityError> {
+    let forces = structure.member_forces(&state.positions);
+    rigidity::analyse(&structure.model, &state.positions, Some(&forces))
+}
+
 /// The state a transient starts from: its `initial.from`, else `default`; the candidates
 /// are [equilibrium, folded, previous] (the end of the stage run just before).
 fn start_state(spec: &TransientSpec, default: StartFrom, [equilibrium, folded, previous]: [&State; 3]) -> State {
@@ -151,8 +174,11 @@ fn shape(cfg: &CaseConfig, model: &Model, settings: &Settings, recorder: &mut dy
         let stage = Stage::Equilibrium;
         return Ok((structure, equilibrium, FormFound { stage, summary, forces }));
     };
-    let measure = Structure::massless(model.clone(), ff.measure.elements(model)?);
-    let (shape, found) = SelfEquilibrium::FORM_FINDING.run(&measure, start, settings, recorder)?;
+    let form_find = |recorder: &mut dyn Recorder| {
+        let measure = Structure::massless(model.clone(), ff.measure.elements(model)?);
+        SelfEquilibrium::FORM_FINDING.run(&measure, start, settings, recorder)
+    };
+    let (shape, found) = form_find(recorder).map_err(|e| explain_failure(model, e))?;
     let forces = balanced_forces(model, &shape.positions, &found.forces);
     let structure = materials.substitute(model, &shape, &forces, cfg.substitution.prestress_scale)?;
     let summary = FormFindSummary::new(&found, &shape, &forces);

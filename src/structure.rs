@@ -75,6 +75,13 @@ impl Structure {
     pub fn strain_energy(&self, x: &[Vector3<f64>]) -> f64 {
         self.elements.strain_energy(&self.model, x)
     }
+
+    /// Axial force of every member at positions `x` [N], tension positive.
+    pub fn member_forces(&self, x: &[Vector3<f64>]) -> Vec<f64> {
+        let mut states = Vec::new();
+        crate::tsm::member_states(&self.model, &self.elements, x, &mut states);
+        states.iter().map(|s| s.force).collect()
+    }
 }
 
 /// Lumped masses: each member's linear density × rest length, half to each end.

@@ -1108,3 +1108,32 @@ fn deployment_with_tangent_reuse_follows_full_newton() {
     assert_eq!(f.transient.factorizations, f.transient.newton_iterations);
     assert!(d.transient.factorizations < d.transient.newton_iterations / 2);
 }
+
+// ---------------------------------------------------------------------------------------
+// The equilibrium-matrix analysis in the pipeline (issue 18)
+// ---------------------------------------------------------------------------------------
+
+/// The paper's case is analysed at its equilibrium: one self-stress state and three
+/// mechanisms (tests/python/test_rigidity.py checks them against NumPy), stabilised by the
+/// prestress and super stable.
+#[test]
+fn paper_equilibrium_is_analysed() {
+    let mut cfg = paper_config();
+    (cfg.free_vibration, cfg.folding, cfg.deployment) = (None, None, None);
+    let summary = run_case(&cfg, &mut tsim::record::NoRecorder).unwrap();
+    let a = &summary.structure_analysis;
+    assert_eq!((a.rank, a.s, a.m, a.rigid_body_modes), (49, 1, 3, 0), "{a:?}");
+    assert!(a.prestress_stable && a.super_stable && a.skipped.is_none());
+}
+
+/// A layout without a proper self-stress fails form-finding with the reason.
+#[test]
+fn form_finding_failure_names_the_missing_self_stress() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/cable_square.yaml");
+    let cfg = parse_case(&std::fs::read_to_string(path).unwrap(), path).unwrap_or_else(|e| panic!("{e}"));
+    let err = run_case(&cfg, &mut tsim::record::NoRecorder).unwrap_err().to_string();
+    assert!(
+        err.contains("this layout has s = 1 at its nominal shape") && err.contains("cable `ac` is in compression"),
+        "{err}"
+    );
+}

@@ -1,7 +1,7 @@
 //! Runs a recorder's streaming on a thread of its own, so that the solver never waits for
 //! compression, encoding or disk.
 //!
-//! [`Background`] wraps a file recorder. The one-off calls (`model`, `formfinding`, `eigen`,
+//! [`Background`] wraps a file recorder. The one-off calls (`model`, `formfinding`, `rigidity`, `eigen`,
 //! `finish`) run on the caller's thread, as before. At `begin_stage` the recorder moves to a
 //! worker thread; the stage's frames are copied into blocks (at most [`BLOCK_FRAMES`] frames
 //! or about [`BLOCK_BYTES`]) and sent through a channel of at most [`QUEUE_BLOCKS`] blocks,
@@ -18,7 +18,8 @@
 //! direct recorder would.
 
 use crate::record::{
-    Constraints, EigenRecord, Energy, FormFindRecord, Frame, FrameModes, ModelRecord, Outcome, RecordResult, Recorder, Stage,
+    Constraints, EigenRecord, Energy, FormFindRecord, Frame, FrameModes, ModelRecord, Outcome, RecordResult, Recorder, RigidityRecord,
+    Stage,
 };
 use nalgebra::Vector3;
 use std::sync::mpsc::{channel, sync_channel, Receiver, Sender, SyncSender};
@@ -196,6 +197,10 @@ impl<R: Recorder + Send + 'static> Recorder for Background<R> {
 
     fn formfinding(&mut self, record: &FormFindRecord) -> RecordResult {
         self.direct()?.formfinding(record)
+    }
+
+    fn rigidity(&mut self, record: &RigidityRecord) -> RecordResult {
+        self.direct()?.rigidity(record)
     }
 
     fn eigen(&mut self, record: &EigenRecord) -> RecordResult {

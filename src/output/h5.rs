@@ -20,7 +20,9 @@
 
 use super::chunk::ChunkEncoder;
 use crate::model::AXES;
-use crate::record::{Constraints, EigenRecord, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
+use crate::record::{
+    Constraints, EigenRecord, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Rigidity, RigidityRecord, Stage,
+};
 use hdf5::types::{FixedUnicode, VarLenUnicode};
 use hdf5::{Dataset, File, Group, H5Type, Location};
 use hdf5_sys::h5::{herr_t, hsize_t};
@@ -248,6 +250,16 @@ impl Recorder for Hdf5Recorder {
             "N",
             "equilibrium member force (tension > 0)",
         )?;
+        Ok(open.file.flush()?)
+    }
+
+    fn rigidity(&mut self, record: &RigidityRecord) -> RecordResult {
+        let open = self.open()?;
+        let g = open.static_group("structure_analysis")?;
+        match record.analysis {
+            Ok(r) => write_rigidity(Dims::new(g), r, &open.node_ids, &open.member_ids)?,
+            Err(reason) => str_attr(&g, "skipped", reason)?,
+        }
         Ok(open.file.flush()?)
     }
 
@@ -575,6 +587,81 @@ impl Series {
     }
 }
 
+/// `/structure_analysis`: the counts and verdicts as attributes, the singular values, the
+/// self-stress basis and the proper self-stress (member forces, unit-free), the internal
+/// mechanisms (free DOF, unit-free) and their prestress stiffness.
+fn write_rigidity(mut g: Dims, r: &Rigidity, node_ids: &[String], member_ids: &[String]) -> Result<(), Error> {
+    let count = |name: &str, v: usize| g.group.new_attr::<i64>().create(name)?.write_scalar(&(v as i64));
+    count("rank", r.rank)?;
+    count("s", r.s)?;
+    count("m", r.m)?;
+    count("rigid_body_modes", r.rigid_body_modes)?;
+    count("m_internal", r.internal_mechanisms())?;
+    count("prestress_stable", usize::from(r.stability.prestress_stable))?;
+    count("super_stable", usize::from(r.stability.super_stable))?;
+    let real = |name: &str, v: f64| g.group.new_attr::<f64>().create(name)?.write_scalar(&v);
+    real("rank_tolerance", r.tolerance)?;
+    real("prestress_residual", r.prestress_residual)?;
+    real("stiffness_tolerance", r.stability.tolerance)?;
+    str_attr(&g.group, "self_stress_source", &r.self_stress_source)?;
+    str_attr(&g.group, "super_stability", &r.stability.super_stability)?;
+    let index = |n: usize| (1..=n as i64).collect::<Vec<_>>();
+    g.labels("member", member_ids, "member id")?;
+    let dofs: Vec<String> = r.dofs.iter().map(|&(n, a)| format!("{}.{}", node_ids[n], AXES[a])).collect();
+    g.labels("dof", &dofs, "free degree of freedom (node.axis)")?;
+    g.coord(
+        "singular",
+        &index(r.singular_values.len()),
+        "1",
+        "singular value number (descending)",
+    )?;
+    g.coord("state", &index(r.s), "1", "self-stress state number")?;
+    g.coord(
+        "mode",
+        &index(r.mechanisms.ncols()),
+        "1",
+        "internal mechanism number (ascending prestress stiffness)",
+    )?;
+    g.var(
+        "singular_value",
+        &["singular"],
+        &r.singular_values,
+        "1",
+        "singular value of the equilibrium matrix",
+    )?;
+    let rows = |m: &faer::Mat<f64>| -> Vec<f64> { (0..m.nrows()).flat_map(|i| (0..m.ncols()).map(move |j| m[(i, j)])).collect() };
+    g.var(
+        "self_stress",
+        &["member", "state"],
+        &rows(&r.self_stress),
+        "1",
+        "orthonormal self-stress basis (member forces)",
+    )?;
+    if let Some(t) = &r.proper_self_stress {
+        g.var(
+            "proper_self_stress",
+            &["member"],
+            t,
+            "1",
+            "self-stress with struts compressed and cables tensioned, max |t| = 1",
+        )?;
+    }
+    g.var(
+        "mechanism",
+        &["dof", "mode"],
+        &rows(&r.mechanisms),
+        "1",
+        "orthonormal internal mechanism basis",
+    )?;
+    g.var(
+        "mechanism_stiffness",
+        &["mode"],
+        &r.stability.mechanism_stiffness,
+        "N m-1",
+        "prestress stiffness of the mechanism (eigenvalue of the geometric stiffness on the mechanisms)",
+    )
+}
+
 /// Creates datasets in one group and attaches them to the group's dimension scales.
 pub(super) struct Dims {
     pub(super) group: Group,
@@ -773,6 +860,9 @@ pub(super) mod tests {
             positions: &x0,
             forces: &forces,
         })?;
+        // The analysis itself is tested in crate::rigidity; here it is only written.
+        let analysis = crate::rigidity::analyse(model, &x0, None).map_err(|e| e.to_string())?;
+        rec.rigidity(&RigidityRecord { analysis: Ok(&analysis) })?;
         let shapes = vec![vec![Vector3::new(0.0, 0.0, 1.0); n]; 4];
         rec.eigen(&EigenRecord {
             omega2: &[1.0, 4.0, 9.0, 16.0],
@@ -913,7 +1003,27 @@ pub(super) mod tests {
             file.dataset("folding/equilibrium_error").unwrap().read_raw::<f64>().unwrap()[4],
             1e-12 * 10.0
         );
-        for group in ["model", "formfinding", "eigen", "free_vibration", "folding", "deployment"] {
+        assert_eq!(
+            file.dataset("structure_analysis/mechanism").unwrap().shape(),
+            vec![
+                3 * n - model.support_count(),
+                file.group("structure_analysis")
+                    .unwrap()
+                    .attr("m_internal")
+                    .unwrap()
+                    .read_scalar::<i64>()
+                    .unwrap() as usize
+            ]
+        );
+        for group in [
+            "model",
+            "formfinding",
+            "structure_analysis",
+            "eigen",
+            "free_vibration",
+            "folding",
+            "deployment",
+        ] {
             let g = file.group(group).unwrap();
             for name in g.member_names().unwrap() {
                 let ds = g.dataset(&name).unwrap();

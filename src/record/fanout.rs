@@ -1,4 +1,4 @@
-use super::{Constraints, EigenRecord, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
+use super::{Constraints, EigenRecord, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, RigidityRecord, Stage};
 
 /// Several recorders behind one: each call goes to all, in order.
 pub struct Recorders(pub Vec<Box<dyn Recorder + Send>>);
@@ -9,6 +9,9 @@ impl Recorder for Recorders {
     }
     fn formfinding(&mut self, r: &FormFindRecord) -> RecordResult {
         self.0.iter_mut().try_for_each(|x| x.formfinding(r))
+    }
+    fn rigidity(&mut self, r: &RigidityRecord) -> RecordResult {
+        self.0.iter_mut().try_for_each(|x| x.rigidity(r))
     }
     fn eigen(&mut self, r: &EigenRecord) -> RecordResult {
         self.0.iter_mut().try_for_each(|x| x.eigen(r))

@@ -7,6 +7,7 @@
 mod fanout;
 
 pub use crate::dynamics::Energy;
+pub use crate::rigidity::Rigidity;
 pub use fanout::Recorders;
 
 use crate::model::{Model, AXES};
@@ -184,6 +185,14 @@ pub struct EigenRecord<'a> {
     pub damping_ratio: &'a [f64],
 }
 
+/// The equilibrium-matrix analysis ([`crate::rigidity`]) of the equilibrium form-finding
+/// (or the given model's equilibrium) found, with the substituted structure's prestress;
+/// or why it was skipped (a model above the dense limit).
+#[derive(Clone, Copy, Debug)]
+pub struct RigidityRecord<'a> {
+    pub analysis: Result<&'a Rigidity, &'a str>,
+}
+
 /// Why a recorder failed (I/O, encoding, a lost writer thread), kept whole as the source
 /// of the stage error it becomes.
 pub type RecordError = Box<dyn std::error::Error + Send + Sync>;
@@ -212,13 +221,16 @@ impl std::fmt::Display for Outcome {
     }
 }
 
-/// A sink for results. Stages call, in order: `model`, `formfinding`, `eigen`, then for
+/// A sink for results. Stages call, in order: `model`, `formfinding`, `rigidity`, `eigen`, then for
 /// each time-stepping stage `begin_stage`, `frame`…, `end_stage`; `finish` last.
 pub trait Recorder {
     fn model(&mut self, _record: &ModelRecord) -> RecordResult {
         Ok(())
     }
     fn formfinding(&mut self, _record: &FormFindRecord) -> RecordResult {
+        Ok(())
+    }
+    fn rigidity(&mut self, _record: &RigidityRecord) -> RecordResult {
         Ok(())
     }
     fn eigen(&mut self, _record: &EigenRecord) -> RecordResult {

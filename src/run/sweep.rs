@@ -439,7 +439,7 @@ pub enum Cell {
 
 /// The per-case columns of `summary.csv` after `case_id` and the swept axes, with their
 /// units (docs/outputs.md documents each): (name, unit).
-pub const COLUMNS: [(&str, &str); 29] = [
+pub const COLUMNS: [(&str, &str); 34] = [
     ("status", ""),
     ("run", ""),
     ("reason", ""),
@@ -451,6 +451,11 @@ pub const COLUMNS: [(&str, &str); 29] = [
     ("folding_s", "s"),
     ("deployment_s", "s"),
     ("equilibrium_residual_n", "N"),
+    ("self_stress_states", "1"),
+    ("mechanisms", "1"),
+    ("internal_mechanisms", "1"),
+    ("prestress_stable", "1"),
+    ("super_stable", "1"),
     ("f1_hz", "Hz"),
     ("omega2_min_rad2_s2", "rad2 s-2"),
     ("omega2_max_rad2_s2", "rad2 s-2"),
@@ -478,6 +483,7 @@ pub fn cells(o: &CaseOutcome) -> Vec<Cell> {
     let eig = s.and_then(|s| s.eigen.as_ref());
     let free = s.and_then(|s| s.free_vibration.as_ref());
     let dep = s.and_then(|s| s.deployment.as_ref());
+    let analysis = s.map(|s| &s.structure_analysis).filter(|a| a.skipped.is_none());
     // A model given with rest lengths solves its equilibrium in place of form-finding.
     let stage = |name: &str| s.and_then(|s| s.stage_seconds.get(name).copied());
     let shaping = stage("formfinding").or_else(|| stage("equilibrium"));
@@ -493,6 +499,12 @@ pub fn cells(o: &CaseOutcome) -> Vec<Cell> {
         f(stage("folding")),
         f(stage("deployment")),
         f(s.map(|s| s.substitution.residual)),
+        // The equilibrium-matrix analysis: counts, and verdicts as 1 / 0 (empty if skipped).
+        f(analysis.map(|a| a.s as f64)),
+        f(analysis.map(|a| a.m as f64)),
+        f(analysis.map(|a| a.m_internal as f64)),
+        f(analysis.map(|a| f64::from(u8::from(a.prestress_stable)))),
+        f(analysis.map(|a| f64::from(u8::from(a.super_stable)))),
         // f1 = √ω²/2π of the lowest mode (NaN when ω² < 0: unstable).
         f(eig.and_then(|e| e.omega2.first()).map(|&w2| w2.sqrt() / std::f64::consts::TAU)),
         f(eig.and_then(|e| e.omega2.first().copied())),

@@ -5,8 +5,8 @@
 
 use super::eigen::{lowest_stiffness, tangent_matrix};
 use super::{solve_error, Analysis, Settings, StaticEquilibrium};
-use crate::error::Result;
-use crate::model::height;
+use crate::error::{Error, Result};
+use crate::model::{height, Model};
 use crate::record::Recorder;
 use crate::solve::{newton, NewtonWorkspace};
 use crate::structure::{State, Structure};
@@ -78,6 +78,40 @@ impl Analysis for SelfEquilibrium {
     }
 }
 
+/// Form-finding's `error` with what the equilibrium-matrix analysis of `model` at its
+/// nominal shape says, when that explains it: s = 0 (no self-stress exists there) or no
+/// self-stress with struts compressed and cables tensioned. A layout with a proper
+/// self-stress gets the error as it is. (Form-finding moves the shape, so the nominal
+/// shape's analysis is a diagnosis, not a proof: a prism built at the wrong twist has s = 0
+/// and still form-finds.)
+pub fn explain_failure(model: &Model, error: Error) -> Error {
+    let Ok(r) = crate::rigidity::analyse(model, &model.positions(), None) else {
+        return error;
+    };
+    let counts = format!(
+        "(equilibrium matrix of {} free DOFs × {} members, rank {})",
+        r.dofs.len(),
+        model.members.len(),
+        r.rank
+    );
+    let note = match (r.s, &r.proper_self_stress) {
+        (_, Some(_)) => return error,
+        (0, None) => format!(
+            "this layout has s = 0 at its nominal shape: no self-stress exists there {counts}, so form-finding must move it far; \
+             check the members' connectivity and kinds, or start from a shape nearer a self-stressed one"
+        ),
+        (s, None) => format!(
+            "this layout has s = {s} at its nominal shape {counts} but no self-stress with struts compressed and cables tensioned \
+             ({}); check the member kinds",
+            r.self_stress_source
+        ),
+    };
+    Error::Explained {
+        source: Box::new(error),
+        note,
+    }
+}
+
 /// Key figures of form-finding.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct FormFindSummary {
@@ -110,5 +144,59 @@ impl FormFindSummary {
             min_force: forces.iter().copied().fold(f64::INFINITY, f64::min),
             max_force: forces.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::generate::TowerSpec;
+    use crate::model::{Member, MemberKind, Node};
+    use nalgebra::Vector3;
+
+    fn failure() -> Error {
+        Error::Stage {
+            stage: "form-finding",
+            reason: "did not converge".into(),
+        }
+    }
+
+    /// A triangle of a strut and two cables has no self-stress (s = 0): said so.
+    #[test]
+    fn a_layout_without_self_stress_is_named() {
+        let node = |id: &str, x: f64, y: f64| Node {
+            id: id.into(),
+            xyz: Vector3::new(x, y, 0.0),
+            support: [false; 3],
+        };
+        let member = |id: &str, nodes, kind| Member {
+            id: id.into(),
+            nodes,
+            kind,
+            groups: vec![],
+        };
+        let model = Model {
+            nodes: vec![node("a", 0.0, 0.0), node("b", 1.0, 0.0), node("c", 0.0, 1.0)],
+            members: vec![
+                member("ab", [0, 1], MemberKind::Strut),
+                member("bc", [1, 2], MemberKind::Cable),
+                member("ca", [2, 0], MemberKind::Cable),
+            ],
+            node_groups: Default::default(),
+        };
+        let text = explain_failure(&model, failure()).to_string();
+        assert!(text.starts_with("form-finding: did not converge; this layout has s = 0"), "{text}");
+    }
+
+    /// A prism at its self-stressed twist has a proper self-stress: the error is left as it is.
+    #[test]
+    fn a_layout_with_a_proper_self_stress_keeps_its_error() {
+        let model = TowerSpec {
+            struts: 4,
+            stages: 1,
+            ..TowerSpec::paper()
+        }
+        .build();
+        assert_eq!(explain_failure(&model, failure()).to_string(), failure().to_string());
     }
 }
