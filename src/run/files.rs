@@ -179,7 +179,8 @@ impl RunLock {
         // hard-linked to its name, which fails if that exists (atomic, even on NFS). A
         // lock created empty and filled afterwards was read as stale by a second run
         // started at the same moment, and both ran.
-        let mine = dir.join(format!("{name}.{}", std::process::id()));
+        // (Its name is no lock's: other shards list the locks while it exists.)
+        let mine = dir.join(format!(".taking-{}{name}", std::process::id()));
         write_atomic(&mine, me.as_bytes())?;
         let taken = (0..2).try_fold(None, |taken: Option<RunLock>, _| {
             if taken.is_some() {
