@@ -23,6 +23,7 @@ mkdir -p "$fake/include" "$fake/lib"
 touch "$fake/include/hdf5.h" "$fake/include/hdf5_hl.h" "$fake/lib/libhdf5.so" "$fake/lib/libhdf5_hl.so"
 
 failures=0
+setup_args="" # scripts/setup's flags in the next cases
 # run <name> <expected exit> <expected text...> -- <env assignments...>
 run() {
   local name=$1 want=$2; shift 2
@@ -32,7 +33,7 @@ run() {
   : >"$tmp/apt.log"
   local rc=0
   env -u HDF5_DIR -u HDF5_ROOT -u CONDA_PREFIX -u LD_LIBRARY_PATH APT_LOG="$tmp/apt.log" \
-    PATH="$stubs:$PATH" "$@" scripts/setup >"$tmp/out" 2>&1 || rc=$?
+    PATH="$stubs:$PATH" "$@" scripts/setup $setup_args >"$tmp/out" 2>&1 || rc=$?
   local ok=1
   [ "$rc" = "$want" ] || ok=0
   for t in "${texts[@]}"; do grep -qF -- "$t" "$tmp/out" "$tmp/apt.log" || { ok=0; echo "  missing: $t"; }; done
@@ -55,5 +56,10 @@ stub rustc 'echo "rustc 1.63.0"'
 run "Debian's rustc 1.63: rustup named" 1 "older than tsim's minimum" "rustup" -- HDF5_DIR="$fake"
 rm "$stubs/rustc"
 run "root without HDF5: apt installs libhdf5-dev" 0 "apt-get install -y -qq libhdf5-dev pkg-config" -- FAKE_UID=0
+setup_args=--slurm
+run "--slurm as root: apt installs Slurm's daemons and client" 0 "slurmctld slurmd slurm-client" -- FAKE_UID=0
+run "--slurm, no root: named as optional, never installed" 0 "Slurm with --slurm" -- HDF5_DIR="$fake"
+no_apt_call "--slurm, no root"
+setup_args=""
 
 [ "$failures" = 0 ] || { echo "$failures failure(s)"; exit 1; }
