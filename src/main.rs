@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use tsim::config::{bytes_text, ConfigError};
 use tsim::run::{
-    collect, default_jobs, install_interrupt, interrupted, load, merge, run, submit, Expanded, OnDisk, Plan, RunOptions, Shard, SubmitOptions,
-    EXIT_INTERRUPTED,
+    collect, default_jobs, install_interrupt, interrupted, load, merge, run, submit, Expanded, OnDisk, Plan, RunOptions, Shard,
+    SubmitOptions, EXIT_INTERRUPTED,
 };
 
 #[derive(Parser)]
@@ -67,11 +67,12 @@ enum Command {
         /// Output root, on a file system the compute nodes share.
         #[arg(long, default_value = "runs")]
         out: PathBuf,
-        /// Array tasks [default: as planned by an earlier submit, else one per case, at most 1000].
-        #[arg(long)]
+        /// Array tasks [default: as planned by an earlier submit, else one per case, at most
+        /// 1000]; more than the cases are cut to one per case.
+        #[arg(long, value_parser = at_least_one)]
         shards: Option<usize>,
         /// Most array tasks running at once (`--array=...%K`).
-        #[arg(long, value_name = "K")]
+        #[arg(long, value_name = "K", value_parser = at_least_one)]
         throttle: Option<usize>,
         /// Lift the limits on estimated output, peak memory and steps, as `run` would.
         #[arg(long)]
@@ -84,9 +85,9 @@ enum Command {
     /// (also written at the end of `tsim run`): a `case` dimension with the swept
     /// parameters as coordinates, the summary's figures and the energy histories. Of a
     /// sharded run (`--shard`, `tsim submit`) it first merges the shards: summary.csv and
-    /// summary.json from every case directory, the manifests checked against the plan.
-    /// Exits 1 when a case is missing or not complete (listed; the files are still
-    /// written).
+    /// summary.json from every case directory, the manifests checked against the plan
+    /// (warnings). Exits 1 when a case is missing or not complete (listed; the files are
+    /// still written).
     Collect {
         /// A run directory (OUT/<name>, holding summary.json).
         run_dir: PathBuf,
@@ -116,6 +117,13 @@ fn report(e: &ConfigError) {
     }
 }
 
+fn at_least_one(text: &str) -> Result<usize, String> {
+    match text.parse() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!("`{text}`: give a whole number ≥ 1")),
+    }
+}
+
 fn parse_shard(text: &str) -> Result<Shard, String> {
     Shard::parse(text, |name| std::env::var(name).ok())
 }
@@ -135,8 +143,10 @@ fn collect_command(run_dir: &std::path::Path) -> ExitCode {
             for (id, why) in &m.not_complete {
                 eprintln!("not complete: {id}: {why}");
             }
+            // The case directories decide the exit code; a manifest only says what its
+            // shard did (a case finished by an unsharded run has none).
             for problem in &m.manifest_problems {
-                eprintln!("manifest: {problem}");
+                eprintln!("warning: manifest: {problem}");
             }
             match &m.collected {
                 Ok(c) => eprintln!("written {}", c.path.display()),
@@ -150,7 +160,7 @@ fn collect_command(run_dir: &std::path::Path) -> ExitCode {
                 m.manifest_problems.len(),
                 run_dir.display()
             );
-            ExitCode::from(u8::from(!m.not_complete.is_empty() || !m.manifest_problems.is_empty()))
+            ExitCode::from(u8::from(!m.not_complete.is_empty()))
         }
         Err(e) => {
             eprintln!("error: {e}");
@@ -161,23 +171,23 @@ fn collect_command(run_dir: &std::path::Path) -> ExitCode {
 
 fn collect_unsharded(run_dir: &std::path::Path) -> ExitCode {
     match collect(run_dir) {
-            Ok(c) => {
-                for (id, why) in &c.missing {
-                    eprintln!("missing: {id}: {why}");
-                }
-                eprintln!(
-                    "{} case(s), {} missing or not complete; written {}",
-                    c.cases,
-                    c.missing.len(),
-                    c.path.display()
-                );
-                ExitCode::from(u8::from(!c.missing.is_empty()))
+        Ok(c) => {
+            for (id, why) in &c.missing {
+                eprintln!("missing: {id}: {why}");
             }
-            Err(e) => {
-                eprintln!("error: {e}");
-                ExitCode::from(2)
-            }
+            eprintln!(
+                "{} case(s), {} missing or not complete; written {}",
+                c.cases,
+                c.missing.len(),
+                c.path.display()
+            );
+            ExitCode::from(u8::from(!c.missing.is_empty()))
         }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
 }
 
 /// `tsim submit`.

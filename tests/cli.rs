@@ -190,7 +190,10 @@ fn shards_run_side_by_side_and_merge_to_the_unsharded_summary() {
     let partial = tsim(&["collect", dir.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&partial.stderr);
     assert_eq!(partial.status.code(), Some(1), "{err}");
-    assert!(err.contains("not complete: cable-nylon_zeta-0.1: started but no outcome.json"), "{err}");
+    assert!(
+        err.contains("not complete: cable-nylon_zeta-0.1: started but no outcome.json"),
+        "{err}"
+    );
     assert!(outcomes(&sharded).iter().any(|o| o["status"] == "interrupted"));
 
     let bad = tsim(&["run", SWEEP, "--shard", "2/2"]);
@@ -992,7 +995,7 @@ fn completions_know_the_commands() {
         assert!(out.status.success(), "{shell}");
         let script = String::from_utf8_lossy(&out.stdout);
         assert!(
-            ["run", "check", "collect", "only", "allow-large"]
+            ["run", "check", "collect", "submit", "shard", "only", "allow-large"]
                 .iter()
                 .all(|w| script.contains(w)),
             "{shell}"

@@ -170,11 +170,15 @@ fn a_sharded_sweep_on_slurm_merges_to_the_unsharded_summary() {
 /// task is surely still running when it is cancelled.
 fn slow_sweep(dir: &Path) -> PathBuf {
     let fixture = std::fs::read_to_string(SWEEP).unwrap();
-    let slow = fixture
-        .replacen("name: small", "name: slow", 1)
-        .replacen("deployment:\n  duration: 0.1\n", "deployment:\n  duration: 80.0\n  dt: 0.0001\n", 1)
-        + "outputs: { every: 2000 }\n";
-    assert!(slow.contains("duration: 80.0") && slow.contains("name: slow"), "the fixture changed: {fixture}");
+    let slow = fixture.replacen("name: small", "name: slow", 1).replacen(
+        "deployment:\n  duration: 0.1\n",
+        "deployment:\n  duration: 80.0\n  dt: 0.0001\n",
+        1,
+    ) + "outputs: { every: 2000 }\n";
+    assert!(
+        slow.contains("duration: 80.0") && slow.contains("name: slow"),
+        "the fixture changed: {fixture}"
+    );
     let path = dir.join("slow.yaml");
     std::fs::write(&path, slow).unwrap();
     path
@@ -210,8 +214,14 @@ fn a_cancelled_task_is_reported_and_a_resubmit_completes_it() {
     wait(&[&array, &merge]);
     // The task stopped on SIGTERM: its running case is interrupted, none of its cases complete.
     assert_eq!(job_field(&task, "JobState"), "CANCELLED");
-    let manifest: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(run.join("shards/shard-1-of-2.json")).unwrap()).unwrap();
-    let statuses: Vec<&str> = manifest["cases"].as_array().unwrap().iter().map(|c| c["status"].as_str().unwrap()).collect();
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("shards/shard-1-of-2.json")).unwrap()).unwrap();
+    let statuses: Vec<&str> = manifest["cases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["status"].as_str().unwrap())
+        .collect();
     assert!(statuses.iter().all(|&s| s == "interrupted"), "{manifest}");
     // The merge job ran after it, reported the shard's cases and failed.
     assert_eq!(job_field(&merge, "ExitCode"), "1:0");
@@ -224,7 +234,11 @@ fn a_cancelled_task_is_reported_and_a_resubmit_completes_it() {
     // The re-submit sends shard 1 alone (the plan's partition), and the sweep completes.
     let resubmitted = tsim(&[&["submit"], &args[..]].concat());
     assert!(resubmitted.status.success(), "{}", text(&resubmitted.stderr));
-    assert!(text(&resubmitted.stderr).contains("submitted shard(s) 1 of 2"), "{}", text(&resubmitted.stderr));
+    assert!(
+        text(&resubmitted.stderr).contains("submitted shard(s) 1 of 2"),
+        "{}",
+        text(&resubmitted.stderr)
+    );
     let stdout = text(&resubmitted.stdout);
     let ids: Vec<&str> = stdout.lines().filter_map(|l| l.split_whitespace().nth(2)).collect();
     wait(&ids);
@@ -233,6 +247,10 @@ fn a_cancelled_task_is_reported_and_a_resubmit_completes_it() {
     assert!(collect.status.success(), "{}", text(&collect.stderr));
     let listed = manifest_cases(&run, 2);
     let distinct: std::collections::BTreeSet<&String> = listed.iter().map(|(id, _)| id).collect();
-    assert_eq!((listed.len(), distinct.len()), (4, 4), "every case in exactly one manifest: {listed:?}");
+    assert_eq!(
+        (listed.len(), distinct.len()),
+        (4, 4),
+        "every case in exactly one manifest: {listed:?}"
+    );
     let _ = std::fs::remove_dir_all(&out);
 }

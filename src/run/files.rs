@@ -111,7 +111,20 @@ fn slurm_job_queued(id: &str) -> bool {
     match std::process::Command::new("squeue").args(["-h", "-o", "%T", "-j", id]).output() {
         Ok(out) if out.status.success() => {
             let states = String::from_utf8_lossy(&out.stdout);
-            states.split_whitespace().any(|s| !matches!(s, "COMPLETED" | "FAILED" | "CANCELLED" | "TIMEOUT" | "NODE_FAIL" | "OUT_OF_MEMORY" | "PREEMPTED" | "BOOT_FAIL" | "DEADLINE"))
+            states.split_whitespace().any(|s| {
+                !matches!(
+                    s,
+                    "COMPLETED"
+                        | "FAILED"
+                        | "CANCELLED"
+                        | "TIMEOUT"
+                        | "NODE_FAIL"
+                        | "OUT_OF_MEMORY"
+                        | "PREEMPTED"
+                        | "BOOT_FAIL"
+                        | "DEADLINE"
+                )
+            })
         }
         // An id the controller no longer knows exits 1 with "Invalid job id".
         Ok(out) => !String::from_utf8_lossy(&out.stderr).contains("Invalid job id"),

@@ -72,7 +72,10 @@ fn on_disk(dir: &Path, p: &Planned) -> CaseOutcome {
         return missing(CaseStatus::Pending, "not started");
     };
     if fingerprint(&yaml) != p.config {
-        return missing(CaseStatus::Pending, "its directory holds another config's case (case.yaml differs); not rerun yet");
+        return missing(
+            CaseStatus::Pending,
+            "its directory holds another config's case (case.yaml differs); not rerun yet",
+        );
     }
     let read = std::fs::read_to_string(case_dir.join("outcome.json")).ok();
     let Some(mut outcome) = read.and_then(|t| serde_json::from_str::<CaseOutcome>(&t).ok()) else {
@@ -96,15 +99,15 @@ fn check_manifests(dir: &Path, plan: &Plan) -> Vec<String> {
     let mut problems = Vec::new();
     let mut seen = vec![0_usize; plan.cases.len()];
     let mut written = vec![false; plan.shards];
-    for index in 0..plan.shards {
-        let shard = Shard {
-            index,
-            count: plan.shards,
-        };
+    for (index, written) in written.iter_mut().enumerate() {
+        let shard = Shard { index, count: plan.shards };
         let manifest = match Manifest::read(dir, shard) {
             Ok(Some(m)) => m,
             Ok(None) => {
-                problems.push(format!("shard {index} of {}: no manifest (its task has not ended, or was killed)", plan.shards));
+                problems.push(format!(
+                    "shard {index} of {}: no manifest (its task has not ended, or was killed)",
+                    plan.shards
+                ));
                 continue;
             }
             Err(e) => {
@@ -112,7 +115,7 @@ fn check_manifests(dir: &Path, plan: &Plan) -> Vec<String> {
                 continue;
             }
         };
-        written[index] = true;
+        *written = true;
         for entry in &manifest.cases {
             match plan.cases.iter().position(|p| p.id == entry.id) {
                 Some(k) if plan.cases[k].shard == index => seen[k] += 1,

@@ -12,11 +12,11 @@ mod submit;
 mod sweep;
 
 pub use collect::{collect, Collected};
+pub use interrupt::{install as install_interrupt, interrupted, EXIT_INTERRUPTED};
 pub use merge::{merge, Merged};
+pub use progress::Progress;
 pub use shard::{Plan, Shard};
 pub use submit::{submit, SubmitOptions, Submitted};
-pub use interrupt::{install as install_interrupt, interrupted, EXIT_INTERRUPTED};
-pub use progress::Progress;
 pub use sweep::{expand, Case, Expanded};
 
 use crate::config::ConfigError;

@@ -64,16 +64,13 @@ pub fn submit(name: &str, cases: &[Case], opts: &SubmitOptions) -> Result<Option
     // A shard goes again when the plan changed (its old manifest lists other cases), when
     // it has a case not complete, or when it never wrote its manifest.
     let shards: Vec<usize> = (0..count)
-        .filter(|&index| {
-            changed
-                || incomplete.contains(&index)
-                || !matches!(Manifest::read(&dir, Shard { index, count }), Ok(Some(_)))
-        })
+        .filter(|&index| changed || incomplete.contains(&index) || !matches!(Manifest::read(&dir, Shard { index, count }), Ok(Some(_))))
         .collect();
     if shards.is_empty() {
         return Ok(None);
     }
-    plan.write(&dir).map_err(|e| format!("cannot write {}: {e}", Plan::path(&dir).display()))?;
+    plan.write(&dir)
+        .map_err(|e| format!("cannot write {}: {e}", Plan::path(&dir).display()))?;
     let config = std::fs::canonicalize(&opts.config).map_err(|e| format!("{}: {e}", opts.config.display()))?;
     let tsim = std::env::current_exe().map_err(|e| format!("cannot find the tsim executable: {e}"))?;
     let scripts = Scripts {
