@@ -6,7 +6,10 @@ use clap::{CommandFactory, Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use tsim::config::{bytes_text, json_schema, ConfigError};
-use tsim::run::{collect, default_jobs, install_interrupt, interrupted, load, run, Expanded, OnDisk, RunOptions, Tally, EXIT_INTERRUPTED};
+use tsim::run::{
+    collect, default_jobs, install_interrupt, interrupted, load, merge, run, submit, Expanded, OnDisk, Plan, RunOptions, Shard,
+    SubmitOptions, Tally, EXIT_INTERRUPTED,
+};
 
 #[derive(Parser)]
 #[command(
@@ -48,11 +51,43 @@ enum Command {
         /// (per stage); the config's `limits` section raises them one by one.
         #[arg(long)]
         allow_large: bool,
+        /// Run only shard I of N (I from 0 to N-1; disjoint slices balanced by estimated
+        /// work, the same on every resume) and write OUT/<name>/shards/shard-I-of-N.json in
+        /// place of the summaries; `auto`: the task of a Slurm job array
+        /// (SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN of SLURM_ARRAY_TASK_COUNT).
+        /// `tsim collect` merges the shards.
+        #[arg(long, value_name = "I/N|auto", value_parser = parse_shard)]
+        shard: Option<Shard>,
+    },
+    /// Submit a sweep to Slurm: a job array of shards (`tsim run --shard`) and a merge job
+    /// (`tsim collect`) after it; prints both job ids. A re-submit sends only the shards
+    /// with a case not complete. docs/cluster.md tells the rest.
+    Submit {
+        config: PathBuf,
+        /// Output root, on a file system the compute nodes share.
+        #[arg(long, default_value = "runs")]
+        out: PathBuf,
+        /// Array tasks [default: as planned by an earlier submit, else one per case, at most
+        /// 1000]; more than the cases are cut to one per case.
+        #[arg(long, value_parser = at_least_one)]
+        shards: Option<usize>,
+        /// Most array tasks running at once (`--array=...%K`).
+        #[arg(long, value_name = "K", value_parser = at_least_one)]
+        throttle: Option<usize>,
+        /// Lift the limits on estimated output, peak memory and steps, as `run` would.
+        #[arg(long)]
+        allow_large: bool,
+        /// Options for both `sbatch` calls, after `--` (e.g. -- --partition=short --time=2:00:00).
+        #[arg(last = true, value_name = "SBATCH OPTIONS")]
+        sbatch: Vec<String>,
     },
     /// Gather a run directory's cases into one xarray-ready file, RUN_DIR/collected.h5
     /// (also written at the end of `tsim run`): a `case` dimension with the swept
-    /// parameters as coordinates, the summary's figures and the energy histories. Exits 1
-    /// when a case is missing or not complete (listed; the file is still written).
+    /// parameters as coordinates, the summary's figures and the energy histories. Of a
+    /// sharded run (`--shard`, `tsim submit`) it first merges the shards: summary.csv and
+    /// summary.json from every case directory, the manifests checked against the plan
+    /// (warnings). Exits 1 when a case is missing or not complete (listed; the files are
+    /// still written).
     Collect {
         /// A run directory (OUT/<name>, holding summary.json).
         run_dir: PathBuf,
@@ -89,27 +124,134 @@ fn report(e: &ConfigError) {
     }
 }
 
+fn at_least_one(text: &str) -> Result<usize, String> {
+    match text.parse() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!("`{text}`: give a whole number ≥ 1")),
+    }
+}
+
+fn parse_shard(text: &str) -> Result<Shard, String> {
+    Shard::parse(text, |name| std::env::var(name).ok())
+}
+
+/// `tsim collect`: a sharded run directory is merged first.
+fn collect_command(run_dir: &std::path::Path) -> ExitCode {
+    match Plan::read(run_dir) {
+        Ok(Some(_)) => {}
+        Ok(None) => return collect_unsharded(run_dir),
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    }
+    match merge(run_dir) {
+        Ok(m) => {
+            for (id, why) in &m.not_complete {
+                eprintln!("not complete: {id}: {why}");
+            }
+            // The case directories decide the exit code; a manifest only says what its
+            // shard did (a case finished by an unsharded run has none).
+            for problem in &m.manifest_problems {
+                eprintln!("warning: manifest: {problem}");
+            }
+            match &m.collected {
+                Ok(c) => eprintln!("written {}", c.path.display()),
+                Err(e) => eprintln!("warning: {e}"),
+            }
+            eprintln!(
+                "{} case(s) in {} shard(s): {} not complete, {} manifest problem(s); summaries written in {}",
+                m.cases,
+                m.shards,
+                m.not_complete.len(),
+                m.manifest_problems.len(),
+                run_dir.display()
+            );
+            ExitCode::from(u8::from(!m.not_complete.is_empty()))
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn collect_unsharded(run_dir: &std::path::Path) -> ExitCode {
+    match collect(run_dir) {
+        Ok(c) => {
+            for (id, why) in &c.missing {
+                eprintln!("missing: {id}: {why}");
+            }
+            eprintln!(
+                "{} case(s), {} missing or not complete; written {}",
+                c.cases,
+                c.missing.len(),
+                c.path.display()
+            );
+            ExitCode::from(u8::from(!c.missing.is_empty()))
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// `tsim submit`.
+fn submit_command(opts: SubmitOptions) -> ExitCode {
+    let Expanded { name, cases, .. } = match load(&opts.config, opts.allow_large) {
+        Ok(x) => x,
+        Err(e) => {
+            report(&e);
+            return ExitCode::from(2);
+        }
+    };
+    match submit(&name, &cases, &opts) {
+        Ok(Some(s)) => {
+            eprintln!(
+                "{} case(s) not complete; submitted shard(s) {} of {} into {}",
+                s.incomplete,
+                s.shards.iter().map(ToString::to_string).collect::<Vec<_>>().join(","),
+                s.count,
+                s.dir.display()
+            );
+            println!("array job {}", s.array_job);
+            println!("merge job {}", s.merge_job);
+            ExitCode::SUCCESS
+        }
+        Ok(None) => {
+            eprintln!(
+                "every case is complete and every shard's manifest written: nothing submitted; `tsim collect {}` merges them",
+                opts.out.join(&name).display()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Collect { run_dir } => match collect(&run_dir) {
-            Ok(c) => {
-                for (id, why) in &c.missing {
-                    eprintln!("missing: {id}: {why}");
-                }
-                eprintln!(
-                    "{} case(s), {} missing or not complete; written {}",
-                    c.cases,
-                    c.missing.len(),
-                    c.path.display()
-                );
-                ExitCode::from(u8::from(!c.missing.is_empty()))
-            }
-            Err(e) => {
-                eprintln!("error: {e}");
-                ExitCode::from(2)
-            }
-        },
+        Command::Collect { run_dir } => collect_command(&run_dir),
+        Command::Submit {
+            config,
+            out,
+            shards,
+            throttle,
+            allow_large,
+            sbatch,
+        } => submit_command(SubmitOptions {
+            config,
+            out,
+            shards,
+            throttle,
+            allow_large,
+            sbatch,
+        }),
         Command::Schema { out } => {
             let schema = json_schema();
             match out {
@@ -176,6 +318,7 @@ fn main() -> ExitCode {
             quiet,
             only,
             allow_large,
+            shard,
         } => {
             let Expanded { name, cases, .. } = match load(&config, allow_large) {
                 Ok(x) => x,
@@ -190,6 +333,7 @@ fn main() -> ExitCode {
                 force,
                 quiet,
                 only,
+                shard,
             };
             if let Err(e) = install_interrupt() {
                 eprintln!("warning: cannot handle SIGINT/SIGTERM ({e}); an interrupted run leaves its files marked running");

@@ -130,9 +130,9 @@ fn version_names_the_git_revision() {
 
 /// Cases are independent and each runs sequentially inside, so the thread count must not
 /// change a single bit of any result.
-#[test]
-fn parallel_equals_serial() {
-    // Wall times are the only figures allowed to differ.
+/// summary.json's outcomes without the wall times, the only figures allowed to differ
+/// between two runs of a config.
+fn outcomes_without_times(dir: &Path) -> Vec<serde_json::Value> {
     fn strip(v: &mut serde_json::Value) {
         match v {
             serde_json::Value::Object(o) => {
@@ -144,11 +144,13 @@ fn parallel_equals_serial() {
             _ => {}
         }
     }
-    let strip = |dir: &Path| -> Vec<serde_json::Value> {
-        let mut o = outcomes(dir);
-        o.iter_mut().for_each(strip);
-        o
-    };
+    let mut o = outcomes(dir);
+    o.iter_mut().for_each(strip);
+    o
+}
+
+#[test]
+fn parallel_equals_serial() {
     let (serial, parallel) = (scratch("serial"), scratch("parallel"));
     assert!(tsim(&["run", SWEEP, "--out", serial.to_str().unwrap(), "--jobs", "1"])
         .status
@@ -156,7 +158,47 @@ fn parallel_equals_serial() {
     assert!(tsim(&["run", SWEEP, "--out", parallel.to_str().unwrap(), "--jobs", "2"])
         .status
         .success());
-    assert_eq!(strip(&serial), strip(&parallel));
+    assert_eq!(outcomes_without_times(&serial), outcomes_without_times(&parallel));
+}
+
+/// Two shards at once in one directory (as a job array runs them), merged by `collect`:
+/// the unsharded run's summary; a case killed mid-way is reported and fails the merge.
+#[test]
+fn shards_run_side_by_side_and_merge_to_the_unsharded_summary() {
+    let (sharded, plain) = (scratch("sharded"), scratch("plain"));
+    let shard = |i: &str| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_tsim"));
+        cmd.args(["run", SWEEP, "--out", sharded.to_str().unwrap(), "--quiet", "--shard", i])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        spawn(&mut cmd)
+    };
+    let both = [shard("0/2"), shard("1/2")];
+    for child in both {
+        let out = child.wait_with_output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
+    let dir = sharded.join("small");
+    assert!(!dir.join("summary.json").exists(), "shards write manifests, not summaries");
+    let merged = tsim(&["collect", dir.to_str().unwrap()]);
+    assert_eq!(merged.status.code(), Some(0), "{}", String::from_utf8_lossy(&merged.stderr));
+    assert!(tsim(&["run", SWEEP, "--out", plain.to_str().unwrap(), "--quiet"]).status.success());
+    assert_eq!(outcomes_without_times(&sharded), outcomes_without_times(&plain));
+
+    // A task killed mid-case leaves no outcome.json: interrupted, whatever its manifest says.
+    std::fs::remove_file(dir.join("cable-nylon_zeta-0.1/outcome.json")).unwrap();
+    let partial = tsim(&["collect", dir.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&partial.stderr);
+    assert_eq!(partial.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("not complete: cable-nylon_zeta-0.1: started but no outcome.json"),
+        "{err}"
+    );
+    assert!(outcomes(&sharded).iter().any(|o| o["status"] == "interrupted"));
+
+    let bad = tsim(&["run", SWEEP, "--shard", "2/2"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("numbered from 0 to N-1"));
 }
 
 fn bad_config(text: &str) -> (Output, PathBuf) {
@@ -966,7 +1008,7 @@ fn completions_know_the_commands() {
         assert!(out.status.success(), "{shell}");
         let script = String::from_utf8_lossy(&out.stdout);
         assert!(
-            ["run", "check", "collect", "only", "allow-large"]
+            ["run", "check", "collect", "submit", "shard", "only", "allow-large"]
                 .iter()
                 .all(|w| script.contains(w)),
             "{shell}"

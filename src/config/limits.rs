@@ -104,6 +104,10 @@ pub struct Estimate {
     /// Peak memory [bytes].
     pub memory: f64,
     pub memory_part: Part,
+    /// Relative cost: the steps of every stage (form-finding and the eigen analysis one
+    /// each) times the free DOF, which every step's assembly and solve grow with at least.
+    /// Only its ratios mean something: it balances a sweep's shards (`tsim run --shard`).
+    pub work: f64,
 }
 
 /// Bytes as `12.3 MB` (decimal units, as the limits are given).
@@ -187,6 +191,7 @@ impl CaseConfig {
             what: format!("the model and form-finding's equilibrium ({nodes} nodes, {members} members)"),
             bytes: 2.0 * frame(false) + on(h5, H5_PER_ITEM * (nodes + members)),
         }];
+        let mut steps = 2.0;
         let mut frames_of = |stage: &str, field: &str, steps: f64, dynamic: bool, how: String| {
             let frames = if dynamic {
                 (steps / every).floor() + 1.0 + f64::from(steps % every != 0.0)
@@ -204,21 +209,24 @@ impl CaseConfig {
         };
         for (stage, t) in [("free_vibration", &self.free_vibration), ("deployment", &self.deployment)] {
             if let Some(t) = t {
-                let steps = (t.duration / t.dt).round();
+                let n_steps = (t.duration / t.dt).round();
                 let how = format!(
-                    "duration {} s / dt {} s = {steps} steps, every {}",
+                    "duration {} s / dt {} s = {n_steps} steps, every {}",
                     t.duration, t.dt, self.outputs.every
                 );
-                frames_of(stage, &format!("{stage}.duration"), steps, true, how);
+                frames_of(stage, &format!("{stage}.duration"), n_steps, true, how);
+                steps += n_steps;
             }
         }
         if let Some(f) = &self.folding {
             frames_of("folding", "folding.steps", f.steps as f64, false, format!("{} steps", f.steps));
+            steps += f.steps as f64;
         }
         if let Some(s) = &self.statics {
             // Under displacement control gravity takes its own `steps` first.
-            let steps = s.steps as f64 * if s.control.is_some() { 2.0 } else { 1.0 };
-            frames_of("static", "static.steps", steps, false, format!("{steps} steps"));
+            let n_steps = s.steps as f64 * if s.control.is_some() { 2.0 } else { 1.0 };
+            frames_of("static", "static.steps", n_steps, false, format!("{n_steps} steps"));
+            steps += n_steps;
         }
         if self.eigen.is_some() {
             // Mode shapes (mode, node, xyz), ω², frequencies; MCAP has only a stage message.
@@ -283,6 +291,7 @@ impl CaseConfig {
             output_part: largest(output),
             memory,
             memory_part,
+            work: steps * n.max(1.0),
         }
     }
 }

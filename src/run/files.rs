@@ -59,32 +59,141 @@ pub fn changed(dir: &Path, files: &BTreeMap<String, u64>) -> Option<String> {
     None
 }
 
-/// A run directory held by this process: `.lock` names the host and process; dropped, it
-/// is removed. A second `tsim run` into the same directory stops with an error instead of
-/// writing the same files (which corrupted them, or hung on HDF5's file locks). A lock
-/// left by a process that no longer runs on this host is stale and taken over (two runs
+/// A run directory held by this process: `.lock` (a whole run) or `.lock.shard-I-of-N`
+/// (one shard of it) names the host, the process and the Slurm job; dropped, it is
+/// removed. A second `tsim run` into the same directory stops with an error instead of
+/// writing the same files (which corrupted them, or hung on HDF5's file locks); shards of
+/// one partition share the directory, since their cases differ, but not with a whole run
+/// nor with shards of another partition. A lock whose holder is gone is stale and taken
+/// over: on this host its process has ended; from another host, its Slurm job has left
+/// the queue (`squeue`); a lock from another host without a Slurm job stays (two runs
 /// that find the same stale lock at the same instant could both take it over; that needs
 /// a crashed run and two new ones started within microseconds).
 pub struct RunLock {
     path: PathBuf,
 }
 
-fn host() -> String {
+pub fn host() -> String {
     std::fs::read_to_string("/proc/sys/kernel/hostname")
         .or_else(|_| std::fs::read_to_string("/etc/hostname"))
         .map(|h| h.trim().to_string())
         .unwrap_or_else(|_| "unknown".into())
 }
 
+const WHOLE: &str = ".lock";
+const SHARD: &str = ".lock.shard-";
+
+/// Who holds the lock file at `path`, if it is held: its text ("host pid [slurm job]").
+/// A stale lock is removed.
+fn holder(path: &Path) -> std::io::Result<Option<String>> {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Ok(None);
+    };
+    let mut parts = text.split_whitespace();
+    let (lock_host, pid, job) = (parts.next().unwrap_or(""), parts.next().unwrap_or(""), parts.next());
+    let alive = if lock_host == host() && !pid.is_empty() {
+        Path::new("/proc").join(pid).exists()
+    } else {
+        job.is_none_or(slurm_job_queued)
+    };
+    if alive {
+        return Ok(Some(text));
+    }
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+        _ => Ok(None),
+    }
+}
+
+/// Whether Slurm still lists job `id` as pending or running; true when `squeue` cannot
+/// tell (not installed, controller down): a lock is kept when in doubt.
+fn slurm_job_queued(id: &str) -> bool {
+    match std::process::Command::new("squeue").args(["-h", "-o", "%T", "-j", id]).output() {
+        Ok(out) if out.status.success() => {
+            let states = String::from_utf8_lossy(&out.stdout);
+            states.split_whitespace().any(|s| {
+                !matches!(
+                    s,
+                    "COMPLETED"
+                        | "FAILED"
+                        | "CANCELLED"
+                        | "TIMEOUT"
+                        | "NODE_FAIL"
+                        | "OUT_OF_MEMORY"
+                        | "PREEMPTED"
+                        | "BOOT_FAIL"
+                        | "DEADLINE"
+                )
+            })
+        }
+        // An id the controller no longer knows exits 1 with "Invalid job id".
+        Ok(out) => !String::from_utf8_lossy(&out.stderr).contains("Invalid job id"),
+        Err(_) => true,
+    }
+}
+
+fn in_use(dir: &Path, holder: &str) -> std::io::Error {
+    let mut parts = holder.split_whitespace();
+    let (host, pid) = (parts.next().unwrap_or("?"), parts.next().unwrap_or("?"));
+    let job = parts.next().map_or_else(String::new, |j| format!(", Slurm job {j}"));
+    std::io::Error::new(
+        std::io::ErrorKind::WouldBlock,
+        format!(
+            "{} is in use by `tsim run` (process {pid} on host {host}{job}); wait for it, or remove its .lock* file if that process is gone",
+            dir.display()
+        ),
+    )
+}
+
 impl RunLock {
+    /// The whole run directory: refused while another run or any shard holds it.
     pub fn acquire(dir: &Path) -> std::io::Result<RunLock> {
-        let path = dir.join(".lock");
-        let me = format!("{} {}", host(), std::process::id());
+        let lock = Self::take(dir, WHOLE)?;
+        match Self::shard_holders(dir)?.into_iter().next() {
+            Some((_, holder)) => Err(in_use(dir, &holder)),
+            None => Ok(lock),
+        }
+    }
+
+    /// Shard `index` of `count`: refused while the whole run, the same shard, or a shard
+    /// of another count holds the directory.
+    pub fn shard(dir: &Path, index: usize, count: usize) -> std::io::Result<RunLock> {
+        let lock = Self::take(dir, &format!("{SHARD}{index}-of-{count}"))?;
+        if let Some(holder) = holder(&dir.join(WHOLE))? {
+            return Err(in_use(dir, &holder));
+        }
+        let suffix = format!("-of-{count}");
+        match Self::shard_holders(dir)?.into_iter().find(|(name, _)| !name.ends_with(&suffix)) {
+            Some((_, holder)) => Err(in_use(dir, &holder)),
+            None => Ok(lock),
+        }
+    }
+
+    /// The live shard locks in `dir`: (file name, holder).
+    fn shard_holders(dir: &Path) -> std::io::Result<Vec<(String, String)>> {
+        let mut held = Vec::new();
+        for entry in std::fs::read_dir(dir)? {
+            let name = entry?.file_name().to_string_lossy().into_owned();
+            if name.starts_with(SHARD) {
+                if let Some(h) = holder(&dir.join(&name))? {
+                    held.push((name, h));
+                }
+            }
+        }
+        Ok(held)
+    }
+
+    /// Takes the lock file `name` in `dir`, or says who holds it.
+    fn take(dir: &Path, name: &str) -> std::io::Result<RunLock> {
+        let path = dir.join(name);
+        let job = std::env::var("SLURM_JOB_ID").map_or_else(|_| String::new(), |j| format!(" {j}"));
+        let me = format!("{} {}{job}", host(), std::process::id());
         // The lock appears whole or not at all: written to a file of this process, then
-        // hard-linked to `.lock`, which fails if `.lock` exists (atomic, even on NFS). A
+        // hard-linked to its name, which fails if that exists (atomic, even on NFS). A
         // lock created empty and filled afterwards was read as stale by a second run
         // started at the same moment, and both ran.
-        let mine = dir.join(format!(".lock.{}", std::process::id()));
+        // (Its name is no lock's: other shards list the locks while it exists.)
+        let mine = dir.join(format!(".taking-{}{name}", std::process::id()));
         write_atomic(&mine, me.as_bytes())?;
         let taken = (0..2).try_fold(None, |taken: Option<RunLock>, _| {
             if taken.is_some() {
@@ -92,24 +201,11 @@ impl RunLock {
             }
             match std::fs::hard_link(&mine, &path) {
                 Ok(()) => Ok(Some(RunLock { path: path.clone() })),
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                    let holder = std::fs::read_to_string(&path).unwrap_or_default();
-                    let mut parts = holder.split_whitespace();
-                    let (lock_host, pid) = (parts.next().unwrap_or(""), parts.next().unwrap_or(""));
-                    if lock_host != host() || pid.is_empty() || Path::new("/proc").join(pid).exists() {
-                        return Err(std::io::Error::new(
-                            std::io::ErrorKind::WouldBlock,
-                            format!(
-                                "{} is in use by `tsim run` (process {pid} on host {lock_host}); wait for it, or remove {} if that process is gone",
-                                dir.display(),
-                                path.display()
-                            ),
-                        ));
-                    }
-                    // Stale: the process that took it has gone.
-                    std::fs::remove_file(&path)?;
-                    Ok(None)
-                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => match holder(&path)? {
+                    Some(holder) => Err(in_use(dir, &holder)),
+                    // Stale, and removed: try again.
+                    None => Ok(None),
+                },
                 Err(e) => Err(e),
             }
         });
@@ -141,11 +237,26 @@ mod tests {
         let first = RunLock::acquire(&dir).unwrap();
         let err = RunLock::acquire(&dir).err().expect("a second lock while the first is held");
         assert!(err.to_string().contains("in use"), "{err}");
+        assert!(RunLock::shard(&dir, 0, 2).is_err(), "no shard while the whole run is held");
         drop(first);
         assert!(!dir.join(".lock").exists());
         // A lock of a process that is gone (pid 0 is never a user process) is stale.
         std::fs::write(dir.join(".lock"), format!("{} 0", host())).unwrap();
         let _taken = RunLock::acquire(&dir).unwrap();
+    }
+
+    #[test]
+    fn shards_of_one_partition_share_a_directory() {
+        let dir = scratch("shards");
+        let first = RunLock::shard(&dir, 0, 3).unwrap();
+        let second = RunLock::shard(&dir, 1, 3).unwrap();
+        assert!(RunLock::shard(&dir, 1, 3).is_err(), "the same shard twice");
+        assert!(RunLock::shard(&dir, 0, 2).is_err(), "a shard of another partition");
+        let err = RunLock::acquire(&dir).err().expect("no whole run while shards run");
+        assert!(err.to_string().contains("in use"), "{err}");
+        assert!(!dir.join(WHOLE).exists(), "the refused whole run left no lock");
+        drop((first, second));
+        let _whole = RunLock::acquire(&dir).unwrap();
     }
 
     #[test]

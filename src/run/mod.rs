@@ -5,12 +5,18 @@
 mod collect;
 mod files;
 mod interrupt;
+mod merge;
 mod progress;
+mod shard;
+mod submit;
 mod sweep;
 
 pub use collect::{collect, Collected};
 pub use interrupt::{install as install_interrupt, interrupted, EXIT_INTERRUPTED};
+pub use merge::{merge, Merged};
 pub use progress::Progress;
+pub use shard::{Plan, Shard};
+pub use submit::{submit, SubmitOptions, Submitted};
 pub use sweep::{expand, Case, Expanded};
 
 use crate::config::ConfigError;
@@ -29,6 +35,8 @@ pub struct RunOptions {
     pub quiet: bool,
     /// Run only the cases whose id matches one of these (see [`selected`]); empty: all.
     pub only: Vec<String>,
+    /// Run only this shard's cases, and write its manifest in place of the summaries.
+    pub shard: Option<Shard>,
 }
 
 /// Whether case `id` matches one of `patterns`: a glob (`*`, `?`, `[...]`) matched against
@@ -172,12 +180,12 @@ impl CaseOutcome {
 }
 
 /// Default worker count: `SLURM_CPUS_PER_TASK` when set (a Slurm task sees every core of
-/// the node but owns only these), else the available cores.
+/// the node but owns only these), else `SLURM_CPUS_ON_NODE` (a job's CPUs on this node,
+/// set when `--cpus-per-task` was not given), else the available cores.
 pub fn default_jobs() -> usize {
-    std::env::var("SLURM_CPUS_PER_TASK")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .filter(|&n: &usize| n > 0)
+    let slurm = |name: &str| std::env::var(name).ok().and_then(|v| v.parse().ok()).filter(|&n: &usize| n > 0);
+    slurm("SLURM_CPUS_PER_TASK")
+        .or_else(|| slurm("SLURM_CPUS_ON_NODE"))
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
@@ -198,12 +206,41 @@ pub fn load(path: &Path, allow_large: bool) -> Result<Expanded, ConfigError> {
     expand(&text, &origin, allow_large)
 }
 
-/// Runs every case of a sweep into `out/<name>/<case id>/`, then writes `summary.csv`
-/// and `summary.json`. A failing case is recorded with its reason; the rest go on.
+/// Runs every case of a sweep (or of its shard) into `out/<name>/<case id>/`, then
+/// writes `summary.csv` and `summary.json` (a shard: its manifest, the merge writes the
+/// summaries). A failing case is recorded with its reason; the rest go on.
 pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec<CaseOutcome>> {
     let dir = opts.out.join(name);
     std::fs::create_dir_all(&dir)?;
-    let _lock = files::RunLock::acquire(&dir)?;
+    let Some(shard) = opts.shard else {
+        let _lock = files::RunLock::acquire(&dir)?;
+        let outcomes = run_cases(&dir, &cases.iter().collect::<Vec<_>>(), opts)?;
+        sweep::write_summaries(&dir, &outcomes)?;
+        // The cases in one xarray-ready file: cheap (each case's energies only); a failure
+        // here loses nothing (`tsim collect` writes it again).
+        if let Err(e) = collect::collect_outcomes(&dir, &outcomes) {
+            eprintln!("warning: {e}");
+        }
+        return Ok(outcomes);
+    };
+    let _lock = files::RunLock::shard(&dir, shard.index, shard.count)?;
+    // Written first, so that the merge knows every case even if every shard is killed.
+    let plan = Plan::new(cases, shard.count);
+    plan.write(&dir)?;
+    let mine: Vec<&Case> = cases
+        .iter()
+        .zip(&plan.cases)
+        .filter(|(_, p)| p.shard == shard.index)
+        .map(|(c, _)| c)
+        .collect();
+    eprintln!("shard {} of {}: {} of {} cases", shard.index, shard.count, mine.len(), cases.len());
+    let outcomes = run_cases(&dir, &mine, opts)?;
+    shard::Manifest::write(&dir, shard, &outcomes)?;
+    Ok(outcomes)
+}
+
+/// Runs `cases` in the run directory `dir`, reusing the complete ones (not with `--force`).
+fn run_cases(dir: &Path, cases: &[&Case], opts: &RunOptions) -> std::io::Result<Vec<CaseOutcome>> {
     // Complete cases are reused, reported in one line rather than one each.
     let reused: Vec<Option<CaseOutcome>> = cases
         .iter()
@@ -242,12 +279,6 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
             .collect()
     });
     progress.finish();
-    sweep::write_summaries(&dir, &outcomes)?;
-    // The cases in one xarray-ready file: cheap (each case's energies only); a failure
-    // here loses nothing (`tsim collect` writes it again).
-    if let Err(e) = collect::collect_outcomes(&dir, &outcomes) {
-        eprintln!("warning: {e}");
-    }
     Ok(outcomes)
 }
 

@@ -23,7 +23,8 @@ mkdir -p "$fake/include" "$fake/lib"
 touch "$fake/include/hdf5.h" "$fake/include/hdf5_hl.h" "$fake/lib/libhdf5.so" "$fake/lib/libhdf5_hl.so"
 
 failures=0
-# run <name> <expected exit> <expected text...> -- <env assignments...>; SETUP_ARGS: its arguments
+setup_args="" # scripts/setup's flags in the next cases
+# run <name> <expected exit> <expected text...> -- <env assignments...>
 run() {
   local name=$1 want=$2; shift 2
   local texts=()
@@ -32,7 +33,7 @@ run() {
   : >"$tmp/apt.log"
   local rc=0
   env -u HDF5_DIR -u HDF5_ROOT -u CONDA_PREFIX -u LD_LIBRARY_PATH APT_LOG="$tmp/apt.log" \
-    PATH="$stubs:$PATH" "$@" scripts/setup ${SETUP_ARGS:-} >"$tmp/out" 2>&1 || rc=$?
+    PATH="$stubs:$PATH" "$@" scripts/setup $setup_args >"$tmp/out" 2>&1 || rc=$?
   local ok=1
   [ "$rc" = "$want" ] || ok=0
   for t in "${texts[@]}"; do grep -qF -- "$t" "$tmp/out" "$tmp/apt.log" || { ok=0; echo "  missing: $t"; }; done
@@ -61,6 +62,11 @@ stub rustup 'echo "rustup $*" >>"$APT_LOG"'
 run "rustfmt missing: rustup component add" 0 "rustup component add rustfmt clippy" -- HDF5_DIR="$fake"
 rm "$stubs/cargo" "$stubs/rustup"
 run "root without HDF5: apt installs libhdf5-dev" 0 "apt-get install -y -qq libhdf5-dev pkg-config" -- FAKE_UID=0
+setup_args=--slurm
+run "--slurm as root: apt installs Slurm's daemons and client" 0 "slurmctld slurmd slurm-client" -- FAKE_UID=0
+run "--slurm, no root: named as optional, never installed" 0 "Slurm with --slurm" -- HDF5_DIR="$fake"
+no_apt_call "--slurm, no root"
+setup_args=""
 
 # No C compiler: PATH holds the stubs and links to every system tool but the C compilers.
 nocc="$tmp/nocc"
@@ -90,9 +96,11 @@ stub apt-get "echo \"apt-get \$*\" >>\"\$APT_LOG\"; case \"\$1\" in -s) echo 'In
 checkout="$tmp/checkout"
 mkdir -p "$checkout/scripts" && cp scripts/setup "$checkout/scripts/" && cp Cargo.toml "$checkout/"
 pushd "$checkout" >/dev/null
-SETUP_ARGS=--user-hdf5 run "--user-hdf5: Debian's HDF5 unpacked without root" 0 \
+setup_args=--user-hdf5
+run "--user-hdf5: Debian's HDF5 unpacked without root" 0 \
   "unpacked Debian's HDF5 (2 packages, no root)" ". .local/hdf5/env" "apt-get download -q libhdf5-dev libhdf5-hl-100" \
   "using HDF5 from HDF5_DIR=$checkout/.local/hdf5/root/usr/lib/x86_64-linux-gnu/hdf5/serial" --
+setup_args=""
 popd >/dev/null
 grep -q "apt-get install" "$tmp/apt.log" && { echo "FAIL --user-hdf5 called apt-get install"; failures=$((failures + 1)); }
 grep -qF "export LD_LIBRARY_PATH=\"$checkout/.local/hdf5/root/usr/lib/x86_64-linux-gnu:" "$checkout/.local/hdf5/env" ||
