@@ -9,19 +9,17 @@
 //!
 //! Usage: bench_scale STAGES [STEPS] [auto|dense|sparse]
 
+#[path = "common/tower.rs"]
+mod tower;
+
 use nalgebra::Vector3;
-use std::sync::Arc;
-use tsim::config::library;
 use tsim::dynamics::{DampingTangent, LoadProfile, Loads, NewmarkParams, NodalLoad, Rayleigh};
-use tsim::law::ForceLaw;
-use tsim::model::generate::TowerSpec;
-use tsim::model::MemberKind;
 use tsim::record::{NoRecorder, Stage};
 use tsim::solve::{LinearSolverChoice, NewtonSettings};
 use tsim::stage::transient::{Initial, Transient};
 use tsim::stage::{Analysis, Settings};
-use tsim::structure::{State, Structure};
-use tsim::tsm::{DofMap, Elements};
+use tsim::structure::State;
+use tsim::tsm::DofMap;
 
 /// Peak resident memory of this process [MiB] (Linux VmHWM).
 fn peak_rss_mib() -> f64 {
@@ -45,32 +43,8 @@ fn main() {
         Some("sparse") => LinearSolverChoice::Sparse,
         _ => LinearSolverChoice::Auto,
     };
-    let model = TowerSpec {
-        struts: 12,
-        stages,
-        radius: 3.0,
-        strut_length: 7.0,
-        overlap: 0.1,
-    }
-    .build();
-    let lib = library();
-    let (strut, cable) = (&lib["aluminium"], &lib["rubber"]);
-    let (strut_law, cable_law) = (strut.law(), cable.law());
-    let x0 = model.positions();
-    let mut laws: Vec<Arc<dyn ForceLaw>> = Vec::new();
-    let mut rest = Vec::new();
-    let mut linear_density = Vec::new();
-    for mem in &model.members {
-        let l = (x0[mem.nodes[1]] - x0[mem.nodes[0]]).norm();
-        let (law, l0, mat) = match mem.kind {
-            MemberKind::Strut => (strut_law.clone(), l, strut),
-            MemberKind::Cable => (cable_law.clone(), l / 1.2, cable),
-        };
-        laws.push(law);
-        rest.push(l0);
-        linear_density.push(mat.density * 1e-3 * mat.area);
-    }
-    let mut structure = Structure::with_lumped_masses(model, Elements { laws, rest }, &linear_density, &[]);
+    let mut structure = tower::nominal_tower(12, stages);
+    let x0 = structure.model.positions();
     structure.damping = Rayleigh {
         alpha: 1.612,
         beta: 0.0052,

@@ -10,7 +10,8 @@
 
 use super::schema::CaseConfig;
 use crate::model::Model;
-use crate::solve::{LinearSolverChoice, DENSE_LIMIT};
+use crate::solve::{krylov_dimension, LinearSolverChoice, DENSE_LIMIT};
+use crate::stage::eigen::ModeSolver;
 
 /// Default limit on the estimated output of one run [GB]: far above the runs tsim ships
 /// (configs/sweep.yaml, 27 cases, about 2 GB uncompressed) and below a laptop's free disk
@@ -228,12 +229,16 @@ impl CaseConfig {
             frames_of("static", "static.steps", n_steps, false, format!("{n_steps} steps"));
             steps += n_steps;
         }
-        if self.eigen.is_some() {
+        // The eigen stage's solver: every mode dense, the lowest k partial.
+        let eigen_solver = self.eigen.as_ref().map(|e| e.mode_solver());
+        let eigen_partial = eigen_solver.filter(|s| s.partial(n as usize));
+        if eigen_solver.is_some() {
             // Mode shapes (mode, node, xyz), ω², frequencies; MCAP has only a stage message.
+            let shapes = eigen_partial.map_or(n, |s| s.modes as f64);
             output.push(Part {
                 field: "eigen".into(),
-                what: format!("eigen: {n} mode shapes of {nodes} nodes"),
-                bytes: on(h5, 8.0 * n * (3.0 * nodes + 3.0)),
+                what: format!("eigen: {shapes} mode shapes of {nodes} nodes"),
+                bytes: on(h5, 8.0 * shapes * (3.0 * nodes + 3.0)),
             });
         }
 
@@ -244,6 +249,8 @@ impl CaseConfig {
             LinearSolverChoice::Sparse => false,
             LinearSolverChoice::Auto => n <= DENSE_LIMIT as f64,
         };
+        // Entries of the sparse tangent (a 3 × 3 block per node and two per member) [count].
+        let pattern = 9.0 * nodes + 18.0 * members;
         let solver = if newton {
             Part {
                 field: "newton.linear_solver".into(),
@@ -251,27 +258,48 @@ impl CaseConfig {
                 bytes: 2.0 * dense(n),
             }
         } else {
-            let pattern = 9.0 * nodes + 18.0 * members;
             Part {
                 field: "model".into(),
                 what: format!("Newton's sparse tangent on {n} free DOF, its factor taken as {SPARSE_FILL}× the pattern"),
                 bytes: pattern * 16.0 * (1.0 + SPARSE_FILL),
             }
         };
-        let stability = |stage: &str| Part {
-            field: "model".into(),
-            what: format!("{stage}: the stability check's dense K_T and its eigen decomposition on {n} free DOF (5 n² × 8 B)"),
-            bytes: STABILITY_MATRICES * dense(n),
+        // The partial eigensolver holds a sparse factorization (as Newton's) and its
+        // Krylov basis, n × (dimension + 1) plus as much again while restarting.
+        let partial_bytes = |modes: usize| pattern * 16.0 * (1.0 + SPARSE_FILL) + 2.0 * 8.0 * n * (krylov_dimension(modes) + 1) as f64;
+        let stability = |stage: &str| {
+            if ModeSolver::lowest(1).partial(n as usize) {
+                Part {
+                    field: "model".into(),
+                    what: format!("{stage}: the stability check's sparse factorization and Lanczos basis on {n} free DOF"),
+                    bytes: partial_bytes(1),
+                }
+            } else {
+                Part {
+                    field: "model".into(),
+                    what: format!("{stage}: the stability check's dense K_T and its eigen decomposition on {n} free DOF (5 n² × 8 B)"),
+                    bytes: STABILITY_MATRICES * dense(n),
+                }
+            }
         };
         let mut stages = vec![solver, stability("substitution")];
-        if self.eigen.is_some() {
-            stages.push(Part {
+        match (eigen_solver, eigen_partial) {
+            (Some(_), Some(p)) => stages.push(Part {
+                field: "eigen".into(),
+                what: format!(
+                    "eigen: the partial solver's sparse factorization, Lanczos basis and {} mode shapes on {n} free DOF",
+                    p.modes
+                ),
+                bytes: partial_bytes(p.modes),
+            }),
+            (Some(_), None) => stages.push(Part {
                 field: "eigen".into(),
                 what: format!(
                     "eigen: dense K_T, the mass-scaled matrix, its eigen decomposition and the mode shapes on {n} free DOF (6 n² × 8 B)"
                 ),
                 bytes: EIGEN_MATRICES * dense(n),
-            });
+            }),
+            (None, _) => {}
         }
         let largest_frame = frame(true).max(frame(false));
         let buffers = Part {

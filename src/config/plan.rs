@@ -127,7 +127,8 @@ impl CaseConfig {
     }
 
     pub fn eigen_stage(&self) -> Option<Eigen> {
-        let damping = match self.eigen.as_ref()?.rayleigh {
+        let spec = self.eigen.as_ref()?;
+        let damping = match spec.rayleigh {
             None => DampingFrom::None,
             Some(RayleighSpec::Given { alpha, beta }) => DampingFrom::Given(Rayleigh { alpha, beta }),
             Some(RayleighSpec::Modes { modes, ratios }) => DampingFrom::Modes { modes, ratios },
@@ -136,7 +137,10 @@ impl CaseConfig {
                 ratios,
             },
         };
-        Some(Eigen { damping })
+        Some(Eigen {
+            damping,
+            solver: spec.mode_solver(),
+        })
     }
 
     /// The transient stage `spec` describes, named `stage`: the paper's `load` first, then

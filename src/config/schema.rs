@@ -5,6 +5,7 @@ use crate::dynamics::{DampingTangent, LoadProfile, NewmarkParams};
 use crate::model::generate::TowerSpec;
 use crate::model::MemberKind;
 use crate::solve::NewtonSettings;
+use crate::stage::eigen::{EigenSolverChoice, ModeSolver, DEFAULT_PARTIAL_MODES};
 use crate::stage::measure::MeasureSpec;
 use std::collections::BTreeMap;
 
@@ -177,6 +178,32 @@ pub struct EigenSpec {
     /// Rayleigh damping for the damped transients; absent: eigen analysis only.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rayleigh: Option<RayleighSpec>,
+    /// `auto` (dense up to 1500 free DOF, partial above), `dense` (every mode) or
+    /// `partial` (the lowest `modes`, or those nearest `shift`). Written to case.yaml
+    /// only when not `auto`, so configs from before the key resume unchanged.
+    #[serde(default, skip_serializing_if = "is_auto")]
+    pub solver: EigenSolverChoice,
+    /// Modes the partial solver computes (default 20).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub modes: Option<usize>,
+    /// The partial solver's modes are those nearest this ω² [rad²/s²] (default: the lowest).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shift: Option<f64>,
+}
+
+impl EigenSpec {
+    /// The stage's choice of solver and modes.
+    pub fn mode_solver(&self) -> ModeSolver {
+        ModeSolver {
+            choice: self.solver,
+            modes: self.modes.unwrap_or(DEFAULT_PARTIAL_MODES),
+            shift: self.shift,
+        }
+    }
+}
+
+fn is_auto(choice: &EigenSolverChoice) -> bool {
+    *choice == EigenSolverChoice::Auto
 }
 
 /// Rayleigh damping: `alpha` and `beta` given, or from two modes (`modes`, 1-based, or

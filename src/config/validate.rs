@@ -4,7 +4,8 @@ use super::schema::*;
 use super::{LawSpec, MaterialSpec};
 use crate::model::generate::TowerSpec;
 use crate::model::Model;
-use crate::solve::NewtonSettings;
+use crate::solve::{krylov_dimension, NewtonSettings};
+use crate::stage::eigen::EigenSolverChoice;
 use crate::stage::measure::{CableCoefficients, MeasureSpec};
 
 #[derive(Debug, thiserror::Error)]
@@ -97,8 +98,8 @@ impl CaseConfig {
         let model = self.check_model(&mut p);
         self.check_materials(&mut p);
         self.check_shape(&mut p);
-        if let Some(r) = self.eigen.as_ref().and_then(|e| e.rayleigh.as_ref()) {
-            check_rayleigh(r, model.as_ref(), &mut p);
+        if let Some(e) = &self.eigen {
+            check_eigen(e, model.as_ref(), &mut p);
         }
         for (name, t) in [("free_vibration", &self.free_vibration), ("deployment", &self.deployment)] {
             if let Some(t) = t {
@@ -360,6 +361,58 @@ fn check_material(at: &str, mat: &MaterialSpec, p: &mut Problems) {
                 p.add(field("terms"), "need at least one term, each with α ≠ 0");
             }
         }
+    }
+}
+
+/// The partial solver's keys, and the Rayleigh modes against the modes computed.
+fn check_eigen(e: &EigenSpec, model: Option<&Model>, p: &mut Problems) {
+    if e.solver == EigenSolverChoice::Dense {
+        for (field, given) in [("eigen.modes", e.modes.is_some()), ("eigen.shift", e.shift.is_some())] {
+            if given {
+                p.add(
+                    field,
+                    "applies to the partial solver; `eigen.solver: dense` computes every mode (remove it or use `partial`)",
+                );
+            }
+        }
+    }
+    if let Some(shift) = e.shift {
+        p.within("eigen.shift", shift, f64::NEG_INFINITY, f64::INFINITY, "(-∞, ∞)");
+    }
+    let solver = e.mode_solver();
+    if let Some(model) = model {
+        let dof_count = 3 * model.node_count() - model.support_count();
+        if e.modes.is_some_and(|k| k == 0 || k >= dof_count) {
+            p.add(
+                "eigen.modes",
+                format!("is {}; must lie in 1..{dof_count} (the model's free DOF)", solver.modes),
+            );
+        } else if e.solver == EigenSolverChoice::Partial && !solver.partial(dof_count) {
+            p.add(
+                "eigen.solver",
+                format!(
+                    "`partial` with {} modes needs more than {} free DOF (its Krylov space), the model has {dof_count}; use `dense` or fewer `eigen.modes`",
+                    solver.modes,
+                    krylov_dimension(solver.modes)
+                ),
+            );
+        }
+        if let Some(RayleighSpec::Modes { modes, .. }) = &e.rayleigh {
+            for (k, m) in modes.iter().enumerate() {
+                if solver.partial(dof_count) && *m > solver.modes {
+                    p.add(
+                        format!("eigen.rayleigh.modes[{k}]"),
+                        format!(
+                            "is {m}, but the partial eigen solver computes {} modes; raise `eigen.modes` to at least {m}",
+                            solver.modes
+                        ),
+                    );
+                }
+            }
+        }
+    }
+    if let Some(r) = &e.rayleigh {
+        check_rayleigh(r, model, p);
     }
 }
 

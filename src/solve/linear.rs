@@ -274,6 +274,32 @@ impl SparseSolver {
     }
 }
 
+impl SparseSolver {
+    /// Factors the assembled matrix by Cholesky only (no LU fallback): whether it is
+    /// positive definite, as far as the factorization can tell. On failure the solver
+    /// holds no factorization.
+    pub fn factor_cholesky(&mut self) -> bool {
+        let n = self.col_ptr.len() - 1;
+        self.factored = Factored::None;
+        self.failed_pivot = None;
+        let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let llt = self.symbolic.factorize_numeric_llt(
+            &mut self.l_values,
+            SparseColMatRef::new(structure, &self.values),
+            Side::Lower,
+            LltRegularization::default(),
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+            Default::default(),
+        );
+        match llt {
+            Ok(_) => self.factored = Factored::Cholesky,
+            Err(e) => self.failed_pivot = Some(self.pivot_dof(e)),
+        }
+        self.factored == Factored::Cholesky
+    }
+}
+
 impl TangentSink for SparseSolver {
     fn add(&mut self, row: usize, col: usize, value: f64) {
         let k = self.slot(row, col);
@@ -312,26 +338,11 @@ impl TangentSolver for SparseSolver {
         let n = self.col_ptr.len() - 1;
         self.factored = Factored::None;
         self.failed_pivot = None;
+        if symmetric && self.factor_cholesky() {
+            return Ok(());
+        }
         let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
         let a = SparseColMatRef::new(structure, &self.values);
-        if symmetric {
-            let llt = self.symbolic.factorize_numeric_llt(
-                &mut self.l_values,
-                a,
-                Side::Lower,
-                LltRegularization::default(),
-                Par::Seq,
-                MemStack::new(&mut self.mem),
-                Default::default(),
-            );
-            match llt {
-                Ok(_) => {
-                    self.factored = Factored::Cholesky;
-                    return Ok(());
-                }
-                Err(e) => self.failed_pivot = Some(self.pivot_dof(e)),
-            }
-        }
         let singular = LinearError::Singular {
             dof: self.failed_pivot,
             ratio: None,

@@ -2,14 +2,21 @@
 //! free DOFs, K_T with its geometric part (a cable's lateral stiffness is pure K_G), M
 //! lumped. With diagonal M the symmetric-definite problem reduces to the standard one:
 //! C = M^-½ K M^-½ = Y Λ Yᵀ, Φ = M^-½ Y, which is M-orthonormal.
+//!
+//! Dense, that costs O(n³) time and a few n × n matrices: 2 000 free DOF take seconds,
+//! 20 000 take hours and GBs. Above [`DENSE_EIGEN_LIMIT`] free DOF (or when asked) the
+//! lowest k modes come instead from the partial solver (`solve::partial_eigen`,
+//! shift-invert Lanczos on the sparse K_T), and so does the stability checks' lowest
+//! eigenvalue. Below it every path is the dense one it always was, bit for bit.
 
 use super::{record_error, Analysis, Settings};
 use crate::dynamics::Rayleigh;
 use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::record::{EigenRecord, Recorder};
+use crate::solve::{krylov_dimension, partial_eigen, Diagonal, Shift, TangentSink};
 use crate::structure::{State, Structure};
-use crate::tsm::{Assembly, DofMap};
+use crate::tsm::{tangent_pattern, Assembly, DofMap};
 use faer::{Mat, Side};
 use nalgebra::Vector3;
 
@@ -31,6 +38,67 @@ pub enum DampingFrom {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Eigen {
     pub damping: DampingFrom,
+    pub solver: ModeSolver,
+}
+
+/// Largest model (free DOF) whose modes `auto` computes densely (all of them). Measured on
+/// this project's towers (bench/eigen.md): at 2 000 free DOF the dense decomposition takes
+/// seconds and 200 MB, the partial one (20 modes) a fraction of a second.
+pub const DENSE_EIGEN_LIMIT: usize = 1500;
+
+/// Modes the partial solver computes unless told otherwise: enough for Rayleigh damping
+/// from the low modes and for the effective-mass choice of `auto_modes` among them.
+pub const DEFAULT_PARTIAL_MODES: usize = 20;
+
+/// Dense or partial eigen analysis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum EigenSolverChoice {
+    /// Dense up to [`DENSE_EIGEN_LIMIT`] free DOF, partial above.
+    #[default]
+    Auto,
+    /// Every mode, by a dense decomposition.
+    Dense,
+    /// The lowest `modes` (or those nearest `shift`), by shift-invert Lanczos.
+    Partial,
+}
+
+/// Which modes an analysis computes and how.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModeSolver {
+    pub choice: EigenSolverChoice,
+    /// Modes of the partial solver.
+    pub modes: usize,
+    /// The partial solver's modes are those nearest this ω² [rad²/s²] (`None`: the lowest).
+    pub shift: Option<f64>,
+}
+
+impl Default for ModeSolver {
+    fn default() -> Self {
+        ModeSolver::lowest(DEFAULT_PARTIAL_MODES)
+    }
+}
+
+impl ModeSolver {
+    /// At least the lowest `modes`, dense or partial by size.
+    pub fn lowest(modes: usize) -> Self {
+        ModeSolver {
+            choice: EigenSolverChoice::Auto,
+            modes,
+            shift: None,
+        }
+    }
+
+    /// Whether `n` free DOF are solved by the partial solver: as chosen, or by size under
+    /// `auto`; never when the Krylov space would not be smaller than the matrix.
+    pub fn partial(&self, n: usize) -> bool {
+        let fits = n > krylov_dimension(self.modes);
+        match self.choice {
+            EigenSolverChoice::Dense => false,
+            EigenSolverChoice::Partial => fits,
+            EigenSolverChoice::Auto => n > DENSE_EIGEN_LIMIT && fits,
+        }
+    }
 }
 
 /// Key figures of the eigen analysis.
@@ -63,14 +131,14 @@ impl Analysis for Eigen {
         let dofs = DofMap::new(model, &[]);
         let asm = Assembly::new(model, &structure.elements, &dofs, state.positions.clone());
         let mass = structure.free_masses(&dofs);
-        let m = modes(&tangent_matrix(&asm), &mass, &dofs, model)?;
+        let m = modes(&asm, &mass, &self.solver)?;
         let (rayleigh, chosen, ratios) = match self.damping {
             DampingFrom::None => (Rayleigh::default(), vec![], vec![]),
             DampingFrom::Given(r) => (r, vec![], vec![]),
-            DampingFrom::Modes { modes, ratios } => (m.rayleigh(modes, ratios), modes.to_vec(), ratios.to_vec()),
+            DampingFrom::Modes { modes, ratios } => (m.rayleigh(modes, ratios)?, modes.to_vec(), ratios.to_vec()),
             DampingFrom::AutoModes { axis, ratios } => {
                 let modes = m.auto_modes(&mass, &dofs, axis);
-                (m.rayleigh(modes, ratios), modes.to_vec(), ratios.to_vec())
+                (m.rayleigh(modes, ratios)?, modes.to_vec(), ratios.to_vec())
             }
         };
         recorder
@@ -109,18 +177,29 @@ impl Modes {
         self.omega2.iter().map(|w2| w2.sqrt() / (2.0 * std::f64::consts::PI)).collect()
     }
 
-    /// Rayleigh damping with damping `ratios` at the 1-based `modes` (eqs 13–14).
-    fn rayleigh(&self, modes: [usize; 2], ratios: [f64; 2]) -> Rayleigh {
+    /// Rayleigh damping with damping `ratios` at the 1-based `modes` (eqs 13–14); an
+    /// error names `eigen.modes` when the partial solver computed fewer modes.
+    fn rayleigh(&self, modes: [usize; 2], ratios: [f64; 2]) -> Result<Rayleigh> {
+        let count = self.omega2.len();
+        if let Some(&k) = modes.iter().find(|&&k| k > count) {
+            return Err(Error::Stage {
+                stage: "eigen",
+                reason: format!(
+                    "`eigen.rayleigh.modes` asks for mode {k}, but the partial eigen solver computed {count}; raise `eigen.modes` to at least {k}"
+                ),
+            });
+        }
         let w = |k: usize| self.omega2[k - 1].sqrt();
-        Rayleigh::from_modes(w(modes[0]), w(modes[1]), ratios[0], ratios[1])
+        Ok(Rayleigh::from_modes(w(modes[0]), w(modes[1]), ratios[0], ratios[1]))
     }
 
-    /// The two modes with the largest effective modal mass along `axis`:
+    /// The two modes with the largest effective modal mass along `axis`, among the modes
+    /// computed (all of them dense, the lowest k partial):
     /// m_eff = (φᵀ M r)² for mass-normalised φ and r the unit rigid translation.
     /// Returned 1-based, in ascending mode order.
     fn auto_modes(&self, mass: &[f64], dofs: &DofMap, axis: usize) -> [usize; 2] {
         let n = mass.len();
-        let mut eff: Vec<(usize, f64)> = (0..n)
+        let mut eff: Vec<(usize, f64)> = (0..self.omega2.len())
             .map(|k| {
                 let g: f64 = (0..n)
                     .filter(|&i| dofs.owner(i).1 == axis)
@@ -157,14 +236,38 @@ pub fn tangent_matrix(asm: &Assembly) -> Mat<f64> {
     k
 }
 
-/// All modes of K φ = ω² M φ; every free DOF must carry mass.
-pub fn modes(k: &Mat<f64>, mass: &[f64], dofs: &DofMap, model: &Model) -> Result<Modes> {
+/// The modes of K_T φ = ω² M φ at the state of `asm` that `solver` asks for: all of them
+/// (dense) or the lowest k (or nearest a shift; partial). Every free DOF must carry mass.
+pub fn modes(asm: &Assembly, mass: &[f64], solver: &ModeSolver) -> Result<Modes> {
     if let Some(i) = mass.iter().position(|&m| !(m > 0.0)) {
         return Err(Error::Stage {
             stage: "eigen",
-            reason: format!("{} has no mass; give its members a density", dofs.label(model, i)),
+            reason: format!("{} has no mass; give its members a density", asm.dofs.label(asm.model, i)),
         });
     }
+    if !solver.partial(mass.len()) {
+        return dense_modes(&tangent_matrix(asm), mass);
+    }
+    let shift = solver.shift.map_or(Shift::Lowest, Shift::Nearest);
+    let pairs = partial_eigen(
+        mass,
+        tangent_pattern(asm.model, asm.dofs),
+        &|k: &mut dyn TangentSink| asm.add_tangent(1.0, k),
+        solver.modes,
+        shift,
+    )
+    .map_err(|e| Error::Stage {
+        stage: "eigen",
+        reason: format!("partial eigen solver: {e}"),
+    })?;
+    Ok(Modes {
+        omega2: pairs.values,
+        shapes: pairs.vectors,
+    })
+}
+
+/// All modes of K φ = ω² M φ by a dense decomposition.
+fn dense_modes(k: &Mat<f64>, mass: &[f64]) -> Result<Modes> {
     let inv_sqrt: Vec<f64> = mass.iter().map(|m| 1.0 / m.sqrt()).collect();
     let n = mass.len();
     let c = Mat::from_fn(n, n, |i, j| k[(i, j)] * inv_sqrt[i] * inv_sqrt[j]);
@@ -178,16 +281,40 @@ pub fn modes(k: &Mat<f64>, mass: &[f64], dofs: &DofMap, model: &Model) -> Result
     Ok(Modes { omega2, shapes })
 }
 
-/// Stability of an equilibrium: the lowest eigenvalue of K_T on the free DOFs and the DOF
-/// its eigenvector moves most. K_T positive definite ⇔ stable.
-pub fn lowest_stiffness(k: &Mat<f64>, dofs: &DofMap, model: &Model) -> Result<(f64, String)> {
-    let evd = k.self_adjoint_eigen(Side::Lower).map_err(|e| Error::Stage {
-        stage: "stability",
-        reason: format!("eigen solver failed: {e:?}"),
-    })?;
-    let u = evd.U();
-    let i = (0..k.nrows())
-        .max_by(|&a, &b| u[(a, 0)].abs().total_cmp(&u[(b, 0)].abs()))
-        .unwrap_or(0);
-    Ok((evd.S()[0], dofs.label(model, i)))
+/// Stability of an equilibrium: the lowest eigenvalue of K_T on the free DOFs of `asm` and
+/// the DOF its eigenvector moves most. K_T positive definite ⇔ stable. Dense up to
+/// [`DENSE_EIGEN_LIMIT`] free DOF, partial (one eigenpair, M = I) above.
+pub fn lowest_stiffness(asm: &Assembly) -> Result<(f64, String)> {
+    let (dofs, model) = (asm.dofs, asm.model);
+    let n = dofs.len();
+    let largest = |v: faer::MatRef<f64>| (0..n).max_by(|&a, &b| v[(a, 0)].abs().total_cmp(&v[(b, 0)].abs())).unwrap_or(0);
+    let (lowest, i) = if ModeSolver::lowest(1).partial(n) {
+        let pairs = partial_eigen(
+            &vec![1.0; n],
+            tangent_pattern(model, dofs),
+            &|k: &mut dyn TangentSink| asm.add_tangent(1.0, k),
+            1,
+            Shift::Lowest,
+        )
+        .map_err(|e| Error::Stage {
+            stage: "stability",
+            reason: format!("partial eigen solver: {e}"),
+        })?;
+        (pairs.values[0], largest(pairs.vectors.as_ref()))
+    } else {
+        let evd = tangent_matrix(asm).self_adjoint_eigen(Side::Lower).map_err(|e| Error::Stage {
+            stage: "stability",
+            reason: format!("eigen solver failed: {e:?}"),
+        })?;
+        (evd.S()[0], largest(evd.U()))
+    };
+    Ok((lowest, dofs.label(model, i)))
+}
+
+/// The largest diagonal entry of K_T on the free DOFs of `asm` (the scale of its
+/// eigenvalues' round-off), without a dense matrix.
+pub fn largest_diagonal(asm: &Assembly) -> f64 {
+    let mut d = Diagonal(vec![0.0; asm.dofs.len()]);
+    asm.add_tangent(1.0, &mut d);
+    d.0.iter().map(|v| v.abs()).fold(0.0, f64::max)
 }

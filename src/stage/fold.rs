@@ -3,7 +3,7 @@
 //! equilibrium by the common Newton driver at every step. A step that fails is split in
 //! halves (bounded); line search did not help in a prototype, sub-stepping did.
 
-use super::eigen::{modes, tangent_matrix};
+use super::eigen::{modes, ModeSolver};
 use super::frames::{non_finite, FrameBuilder};
 use super::EquilibriumSummary;
 use super::{record_error, solve_error, Analysis, Settings, StaticEquilibrium};
@@ -158,12 +158,13 @@ impl Fold<'_> {
     }
 }
 
-/// The lowest `count` modes of the structure at the state of `asm` (its free DOFs).
+/// The lowest `count` modes of the structure at the state of `asm` (its free DOFs), dense
+/// or partial by size.
 /// Also returns the lowest mode over every node (zero at constrained directions), for the
 /// frame.
 fn path_modes(structure: &Structure, asm: &Assembly, step: usize, count: usize) -> Result<(PathModes, Vec<Vector3<f64>>)> {
     let dofs = asm.dofs;
-    let m = modes(&tangent_matrix(asm), &structure.free_masses(dofs), dofs, &structure.model)?;
+    let m = modes(asm, &structure.free_masses(dofs), &ModeSolver::lowest(count))?;
     let lowest = (0..dofs.len())
         .max_by(|&a, &b| m.shapes[(a, 0)].abs().total_cmp(&m.shapes[(b, 0)].abs()))
         .unwrap_or(0);

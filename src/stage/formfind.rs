@@ -3,7 +3,7 @@
 //! the paper, but the common scheme takes any law (a model given with real rest lengths
 //! is brought to its equilibrium the same way).
 
-use super::eigen::{lowest_stiffness, tangent_matrix};
+use super::eigen::lowest_stiffness;
 use super::{solve_error, Analysis, Settings, StaticEquilibrium};
 use crate::error::{Error, Result};
 use crate::model::{height, Model};
@@ -64,7 +64,7 @@ impl Analysis for SelfEquilibrium {
             .filter(|&i| dofs.free(i / 3, i % 3).is_none())
             .map(|i| asm.p[i].abs())
             .fold(0.0, f64::max);
-        let (lowest_stiffness, lowest_stiffness_at) = lowest_stiffness(&tangent_matrix(&asm), &dofs, model)?;
+        let (lowest_stiffness, lowest_stiffness_at) = lowest_stiffness(&asm)?;
         let found = Equilibrium {
             forces: asm.states.iter().map(|s| s.force).collect(),
             lengths: asm.states.iter().map(|s| s.length).collect(),

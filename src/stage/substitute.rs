@@ -2,7 +2,7 @@
 //! which its real law carries the form-found force at the form-found length, so the real
 //! structure is in equilibrium in the same shape.
 
-use super::eigen::{lowest_stiffness, tangent_matrix};
+use super::eigen::{largest_diagonal, lowest_stiffness};
 use crate::error::{Error, Result};
 use crate::law::ForceLaw;
 use crate::model::{MemberKind, Model};
@@ -72,9 +72,8 @@ impl SubstitutionSummary {
             .zip(&structure.elements.rest)
             .filter(|((m, _), _)| m.kind == MemberKind::Cable)
             .map(|((_, s), l0)| s.length / l0);
-        let k = tangent_matrix(&asm);
-        let (lowest, at) = lowest_stiffness(&k, &dofs, model)?;
-        let largest = (0..dofs.len()).map(|i| k[(i, i)].abs()).fold(0.0, f64::max);
+        let (lowest, at) = lowest_stiffness(&asm)?;
+        let largest = largest_diagonal(&asm);
         Ok(SubstitutionSummary {
             residual: asm.max_free_residual(),
             max_force: asm.states.iter().map(|s| s.force.abs()).fold(0.0, f64::max),
