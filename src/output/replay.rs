@@ -293,7 +293,8 @@ fn put_double(out: &mut Vec<u8>, field: u8, v: f64) {
 /// non-empty bucket of `buckets` (struts then cables, each by colour state, see
 /// [`state_colour`]) one `LinePrimitive` {1: type, 3: thickness, 4: scale_invariant,
 /// 5: points, 6: colour}, each point the 27 bytes of its node's position in `nodes`.
-/// Building the points and encoding them through prost cost 2.5 times as much (perf).
+/// Building the points and encoding them through prost took 9 % of the writer's time on
+/// the paper case, this 2 % (perf).
 /// Empties the buckets.
 fn encode_lines(out: &mut Vec<u8>, buckets: &mut [Vec<usize>], nodes: &NodeRecords) {
     let states = 1 + 2 * LEVELS;
@@ -392,8 +393,8 @@ impl McapRecorder {
     pub fn create(path: &Path, case_id: &str) -> Result<Self, Error> {
         // zstd level −1, zstd's first "fast" level: as small a file as level 1 on the paper
         // case (20.7 MB either way) for 8 % less writer CPU; lz4 cost as much CPU for a file
-        // 46 % larger; levels −3 and −5 saved 4 % and 6 % more for files 10 % and 13 %
-        // larger (bench/outputs.md). mcap takes the level as a u32 and hands it to zstd as
+        // 46 % larger; levels −3 and −5 cut the writer's CPU by a further 6 % and 9 % for
+        // files 10 % and 13 % larger (bench/outputs.md). mcap takes the level as a u32 and hands it to zstd as
         // an i32, so −1 goes through as its two's complement. Single-threaded: the recorder
         // has a thread of its own (see `Background`), and zstd's own workers would compete
         // with the solver.
