@@ -35,9 +35,7 @@
 
 use crate::model::{MemberKind, Model};
 use crate::record::{Energy, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
-use foxglove::messages::{
-    line_primitive, Color, LinePrimitive, Point3, Pose, Quaternion, SceneEntity, SceneUpdate, TextPrimitive, Timestamp,
-};
+use foxglove::messages::{line_primitive, Color, Pose, Quaternion, SceneEntity, SceneUpdate, TextPrimitive, Timestamp};
 use foxglove::Encode;
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
@@ -47,6 +45,8 @@ use std::path::Path;
 
 type Error = Box<dyn std::error::Error + Send + Sync>;
 
+/// zstd level of the MCAP chunks (see [`McapRecorder::create`]).
+const ZSTD_LEVEL: i32 = -1;
 /// Synthetic duration of one step of a static stage on the log timeline [s].
 pub const STATIC_STEP: f64 = 0.1;
 /// Line widths [px], independent of zoom so that any model size reads well.
@@ -264,14 +264,20 @@ impl NodeRecords {
         r
     }
 
-    fn with_positions(&mut self, positions: &[Vector3<f64>]) -> &[u8] {
+    /// Node `n`'s position as an encoded `Point3` {1: x, 2: y, 3: z} (27 bytes), as last
+    /// patched.
+    fn point(&self, n: usize) -> &[u8] {
+        let at = self.position_at[n] - 1;
+        &self.bytes[at..at + 27]
+    }
+
+    fn set_positions(&mut self, positions: &[Vector3<f64>]) {
         for (&at, p) in self.position_at.iter().zip(positions) {
             for (k, v) in [p.x, p.y, p.z].into_iter().enumerate() {
                 let at = at + 9 * k;
                 self.bytes[at..at + 8].copy_from_slice(&v.to_le_bytes());
             }
         }
-        &self.bytes
     }
 }
 
@@ -280,6 +286,37 @@ fn put_double(out: &mut Vec<u8>, field: u8, v: f64) {
     if v != 0.0 {
         out.push(field << 3 | 1);
         out.extend_from_slice(&v.to_le_bytes());
+    }
+}
+
+/// The scene entity's `lines` (field 11), encoded as prost encodes them: for each
+/// non-empty bucket of `buckets` (struts then cables, each by colour state, see
+/// [`state_colour`]) one `LinePrimitive` {1: type, 3: thickness, 4: scale_invariant,
+/// 5: points, 6: colour}, each point the 27 bytes of its node's position in `nodes`.
+/// Building the points and encoding them through prost took 9 % of the writer's time on
+/// the paper case, this 2 % (perf).
+/// Empties the buckets.
+fn encode_lines(out: &mut Vec<u8>, buckets: &mut [Vec<usize>], nodes: &NodeRecords) {
+    let states = 1 + 2 * LEVELS;
+    for (bucket, ends) in buckets.iter_mut().enumerate().filter(|(_, e)| !e.is_empty()) {
+        let thickness = if bucket < states { STRUT_WIDTH } else { CABLE_WIDTH };
+        let c = state_colour(bucket % states);
+        let colour = [c.r, c.g, c.b, c.a];
+        let colour_len = 9 * colour.iter().filter(|&&v| v != 0.0).count();
+        out.push(0x5a);
+        put_varint(out, 2 + 9 + 2 + 29 * ends.len() + 2 + colour_len);
+        out.extend_from_slice(&[0x08, line_primitive::Type::LineList as u8, 0x19]);
+        out.extend_from_slice(&thickness.to_le_bytes());
+        out.extend_from_slice(&[0x20, 0x01]);
+        for &n in ends.iter() {
+            out.extend_from_slice(&[0x2a, 27]);
+            out.extend_from_slice(nodes.point(n));
+        }
+        out.extend_from_slice(&[0x32, colour_len as u8]);
+        for (field, v) in (1..).zip(colour) {
+            put_double(out, field, v);
+        }
+        ends.clear();
     }
 }
 
@@ -327,8 +364,10 @@ pub struct McapRecorder {
     members: Vec<([usize; 2], MemberKind)>,
     /// The `/tsim/members` message's member records, encoded once.
     member_records: MemberRecords,
-    /// Point buffers of the scene's lines, one per (kind, state), reused between steps.
-    points: Vec<Vec<Point3>>,
+    /// The end nodes of the scene's lines, one list per (kind, state), reused between steps.
+    buckets: Vec<Vec<usize>>,
+    /// The scene's lines, encoded (see [`encode_lines`]).
+    lines: Vec<u8>,
     /// The node spheres and support cubes, encoded once.
     nodes: NodeRecords,
     /// Node sphere diameter [m].
@@ -352,12 +391,16 @@ impl McapRecorder {
     /// Creates (truncates) `path`. Every frame given is logged: the output stride is applied
     /// by the stages.
     pub fn create(path: &Path, case_id: &str) -> Result<Self, Error> {
-        // zstd level 1: level 3 (the default) spent 5 % of the paper case in compression for
-        // files 2 % smaller. Single-threaded: the recorder has a thread of its own (see
-        // `Background`), and zstd's own workers would compete with the solver.
+        // zstd level −1, zstd's first "fast" level: as small a file as level 1 on the paper
+        // case (20.7 MB either way) for 8 % less writer CPU; lz4 cost as much CPU for a file
+        // 46 % larger; levels −3 and −5 cut the writer's CPU by a further 6 % and 9 % for
+        // files 10 % and 13 % larger (bench/outputs.md). mcap takes the level as a u32 and hands it to zstd as
+        // an i32, so −1 goes through as its two's complement. Single-threaded: the recorder
+        // has a thread of its own (see `Background`), and zstd's own workers would compete
+        // with the solver.
         let options = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
-            .compression_level(1)
+            .compression_level(ZSTD_LEVEL as u32)
             .compression_threads(0);
         let mut writer = options.create(BufWriter::new(File::create(path)?))?;
         let channels = Channels {
@@ -380,7 +423,8 @@ impl McapRecorder {
             clock: Clock::default(),
             members: Vec::new(),
             member_records: MemberRecords::default(),
-            points: vec![Vec::new(); 2 * (1 + 2 * LEVELS)],
+            buckets: vec![Vec::new(); 2 * (1 + 2 * LEVELS)],
+            lines: Vec::new(),
             nodes: NodeRecords::default(),
             node_size: 0.0,
             legend_at: None,
@@ -457,27 +501,29 @@ impl McapRecorder {
     }
 
     /// `/tsim/scene` into `self.buf`: the `tensegrity` entity's head, the node records
-    /// with this step's positions, then its lines and legend (see [`NodeRecords`]).
+    /// with this step's positions, its lines, then its legend (see [`NodeRecords`] and
+    /// [`encode_lines`]).
     fn encode_scene(&mut self, stage: Stage, step: usize, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) {
         let (head, tail) = self.scene(stage, step, ns, positions, forces);
-        let nodes = self.nodes.with_positions(positions);
-        let len = prost_len(&head) + nodes.len() + prost_len(&tail);
+        self.nodes.set_positions(positions);
+        self.lines.clear();
+        encode_lines(&mut self.lines, &mut self.buckets, &self.nodes);
+        let len = prost_len(&head) + self.nodes.bytes.len() + self.lines.len() + prost_len(&tail);
         self.buf.clear();
         self.buf.push(0x12); // SceneUpdate field 2 (entities), length-delimited
         put_varint(&mut self.buf, len);
         head.encode(&mut self.buf).expect("a Vec grows");
-        self.buf.extend_from_slice(nodes);
+        self.buf.extend_from_slice(&self.nodes.bytes);
+        self.buf.extend_from_slice(&self.lines);
         tail.encode(&mut self.buf).expect("a Vec grows");
-        self.reclaim(tail);
     }
 
-    /// The scene entity in two parts: its head (timestamp, frame, id), and its lines and
-    /// legend. Members are coloured by force on two scales, each topped by the step's
-    /// largest force of its sign: tension pale to full red, compression pale to full blue,
+    /// The scene entity's head (timestamp, frame, id) and its legend; the members' end
+    /// nodes sorted into `self.buckets` for [`encode_lines`]. Members are coloured by force
+    /// on two scales, each topped by the step's largest force of its sign: tension pale to full red, compression pale to full blue,
     /// in [`LEVELS`] shades; slack members (|N| at most [`SLACK_FRACTION`] of the largest,
     /// or a cable in compression) grey. One `LINE_LIST` per (kind, colour) present: half the
-    /// size of per-vertex colours. The point buffers come from `self.points`; give the tail
-    /// back to [`McapRecorder::reclaim`] once encoded.
+    /// size of per-vertex colours.
     fn scene(&mut self, stage: Stage, step: usize, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) -> (SceneEntity, SceneEntity) {
         let (mut tension, mut compression) = (0.0_f64, 0.0_f64);
         for &f in forces {
@@ -495,24 +541,7 @@ impl McapRecorder {
                 LEVELS + level(force, compression)
             };
             let bucket = states * usize::from(*kind == MemberKind::Cable) + state;
-            self.points[bucket].extend(ends.map(|n| Point3 {
-                x: positions[n].x,
-                y: positions[n].y,
-                z: positions[n].z,
-            }));
-        }
-        let mut lines = Vec::new();
-        for (bucket, points) in self.points.iter_mut().enumerate() {
-            if !points.is_empty() {
-                lines.push(LinePrimitive {
-                    r#type: line_primitive::Type::LineList as i32,
-                    thickness: if bucket < states { STRUT_WIDTH } else { CABLE_WIDTH },
-                    scale_invariant: true,
-                    points: std::mem::take(points),
-                    color: Some(state_colour(bucket % states)),
-                    ..Default::default()
-                });
-            }
+            self.buckets[bucket].extend(ends);
         }
         let at = *self.legend_at.get_or_insert_with(|| legend_position(positions, self.node_size));
         let scale = |max: f64| if max > 0.0 { format!("max {} N", sig3(max)) } else { "none".into() };
@@ -545,20 +574,10 @@ impl McapRecorder {
             ..Default::default()
         };
         let tail = SceneEntity {
-            lines,
             texts: vec![legend],
             ..Default::default()
         };
         (head, tail)
-    }
-
-    /// Returns the point buffers of a scene's lines (the tail of [`McapRecorder::scene`]) for
-    /// reuse.
-    fn reclaim(&mut self, tail: SceneEntity) {
-        for (slot, mut line) in self.points.iter_mut().filter(|p| p.is_empty()).zip(tail.lines) {
-            line.points.clear();
-            *slot = line.points;
-        }
     }
 
     fn record_frame(&mut self, frame: &Frame) -> Result<(), Error> {
