@@ -4,6 +4,7 @@
 mod bisect;
 mod linear;
 mod newton;
+pub mod small_solve;
 
 pub use bisect::bisect;
 pub use linear::{DenseSolver, LinearError, SparseSolver, TangentSink, TangentSolver};
