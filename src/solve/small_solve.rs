@@ -15,8 +15,9 @@
 use faer::Mat;
 
 /// Largest matrix (rows) whose Cholesky solves the dense solver does with these loops.
-/// `examples/bench_dense.rs` on this machine (2 cores, AMD EPYC, loaded): the loops take
-/// half of faer's time at n = 16–64 and remain faster up to 200 (7.6 vs 9.2 µs).
+/// `examples/bench_dense.rs` (CPU time of one solve, 2-core AMD EPYC, loaded): loops
+/// against faer 0.27 vs 0.33 µs at n = 16, 1.17 vs 1.48 µs at 52, 3.99 vs 4.76 µs at 128,
+/// 8.25 vs 8.50 µs at 200, then slower (17.2 vs 16.1 µs at 300).
 pub const SMALL_SOLVE: usize = 200;
 
 /// Solves L Lᵀ x = b in place (`x` holds b on entry), L the lower triangle of `l` (as
