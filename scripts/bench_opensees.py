@@ -6,15 +6,24 @@ openseespy first. Steps:
 
 1. tsim runs `configs/bench_elastic.yaml` (linear-elastic struts and cables) with HDF5 on:
    the reference trajectory and the model (result.h5).
-2. tsim runs the same case with outputs off, `--reps` times: the deployment stage's wall
-   time (outcome.json, deployment.wall_seconds), median; once with its default tangent
-   reuse and once with full Newton (`newton.tangent: full`), the like-for-like setting.
+2. Timing, `--reps` interleaved rounds, every run a process of its own, its wall time
+   and its CPU time (user + system, from the kernel's accounting of the child: what a
+   loaded machine's waiting does not inflate):
+   - tsim: the whole `tsim run` process (form-finding, substitution, eigen, folding,
+     deployment, the case files) with outputs off, with its default tangent reuse and
+     with full Newton (`newton.tangent: full`); also with HDF5 on;
+   - OpenSees: one Python process per algorithm (Newton and each of `--algorithms`)
+     that imports openseespy, loads the case (a pickle of what step 3 reads), builds the
+     model (wipe, nodes, materials, elements, loads, analysis objects) and runs one
+     `analyze(steps, dt)`; it reports its build + analyze wall and CPU time, measured in
+     that process around those two calls. The ratios use that in-process time (Python's
+     start and the openseespy import left out: the comparison least favourable to tsim);
+     the whole OpenSees process is in the table too.
 3. OpenSees rebuilds the deployment from result.h5: nodes at the folded positions, the
    same supports and lumped masses, corotTruss elements with InitStrainMaterial(Elastic)
    so that N = EA (l − l0)/l0 with tsim's rest lengths, the launch load, Rayleigh damping
    with the committed (last converged) tangent, Newmark average acceleration, Newton
    (and, for the timing, each of `--algorithms`: OpenSees' own tangent-reusing solvers).
-   Model building and the analysis loop are timed separately, `--reps` times (median).
 4. A separate OpenSees run records every step and is compared with tsim's trajectory.
 
 Writes bench/opensees.md (unless --no-write) and prints the same table.
@@ -24,7 +33,9 @@ import argparse
 import atexit
 import datetime
 import json
+import resource
 import os
+import pickle
 import platform
 import shutil
 import statistics
@@ -59,6 +70,57 @@ def load_average():
 # --------------------------------------------------------------------------------------
 # tsim
 # --------------------------------------------------------------------------------------
+
+
+def children_cpu():
+    """CPU time [s] of this process's reaped children so far (user + system)."""
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def timed_process(cmd):
+    """Runs `cmd` to completion (one child at a time, so the children's CPU totals before
+    and after are its own); returns (stdout, wall [s], CPU [s])."""
+    cpu0, t0 = children_cpu(), time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    wall, cpu = time.perf_counter() - t0, children_cpu() - cpu0
+    if proc.returncode != 0:
+        raise SystemExit(f"{cmd[0]} failed ({proc.returncode}): {proc.stderr.strip()[-500:]}")
+    return proc.stdout, wall, cpu
+
+
+def run_tsim_timed(tsim, config, out):
+    """One whole `tsim run` process: (outcome dict, wall [s], CPU [s])."""
+    _, wall, cpu = timed_process([str(tsim), "run", str(config), "--quiet", "--force", "--out", str(out)])
+    name = yaml.safe_load(Path(config).read_text())["name"]
+    outcome = json.loads((Path(out) / name / name / "outcome.json").read_text())
+    if outcome["status"] != "complete":
+        raise SystemExit(f"tsim case failed: {outcome}")
+    return outcome, wall, cpu
+
+
+def run_opensees_process(case_file, system, tol, algorithm):
+    """One OpenSees process (this script in worker mode): (in-process build + analyze wall
+    [s], their CPU [s], whole-process wall [s], whole-process CPU [s], final positions)."""
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", str(case_file),
+           "--system", system, "--tol", repr(tol), "--algorithms", algorithm]
+    out, wall, cpu = timed_process(cmd)
+    r = json.loads(out.strip().splitlines()[-1])
+    if r.get("failed"):
+        raise OpenSeesFailed(r["failed"])
+    return r["wall"], r["cpu"], wall, cpu, np.array(r["final"])
+
+
+def worker(args):
+    """Worker mode: build and analyze once, print the timings and final state as JSON."""
+    import openseespy.opensees as ops
+    case = pickle.loads(Path(args.worker).read_bytes())
+    w0, c0 = time.perf_counter(), time.process_time()
+    build_opensees(ops, case, [args.system], args.tol, algorithm=args.algorithms)
+    ok = ops.analyze(case["steps"], case["dt"])
+    wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+    failed = None if ok == 0 else f"OpenSees analyze failed ({ok}) with system {args.system}, algorithm {args.algorithms}"
+    print(json.dumps({"wall": wall, "cpu": cpu, "final": positions(ops, case).tolist(), "failed": failed}))
 
 
 def run_tsim(tsim, config, out):
@@ -337,7 +399,10 @@ def main():
     ap.add_argument("--out", default=str(ROOT / "bench/opensees.md"))
     ap.add_argument("--no-write", action="store_true")
     ap.add_argument("--source", help="what the tsim binary was built from, for the table (default: git describe --dirty)")
+    ap.add_argument("--worker", help=argparse.SUPPRESS)  # internal: one timed OpenSees process on this case pickle
     args = ap.parse_args()
+    if args.worker:
+        return worker(args)
 
     import openseespy.opensees as ops  # noqa: E402 (installed by scripts/bench_opensees)
 
@@ -364,38 +429,40 @@ def main():
     if args.tol is None:
         args.tol = 1e-10 * size
 
-    # 2./3. Timing, interleaved so that both programs see the same background load: per
-    # repetition tsim with outputs off, tsim with HDF5 on, OpenSees (build + one analyze).
+    # 2. Timing, interleaved so that both programs see the same background load: per
+    # round tsim (outputs off: reuse, full Newton; HDF5 on) and OpenSees (each algorithm),
+    # every run a process of its own.
     off_cfg = outputs_off_config(args.config, tmp)
     full_cfg = outputs_off_config(args.config, tmp, tangent="full")
-    algorithms = [a for a in args.algorithms.split(",") if a and a != "Newton"]
-    tsim_off, tsim_full, tsim_on, os_build, os_loop, loads = [], [], [], [], [], []
+    case_file = Path(tmp) / "case.pickle"
+    case_file.write_bytes(pickle.dumps(case))
+    algorithms = ["Newton"] + [a for a in args.algorithms.split(",") if a and a != "Newton"]
+    tsim_runs = {"default": [], "full": [], "hdf5": []}  # (wall, CPU) per run
     tsim_counts = {}
-    alg_loop, alg_final, alg_failed = {a: [] for a in algorithms}, {}, {}
+    os_runs = {a: [] for a in algorithms}  # (in-process wall, CPU, process wall, CPU)
+    alg_final, alg_failed, loads = {}, {}, []
     for rep in range(args.reps):
         loads.append(load_average())
-        for label, cfg_path, times in [("default", off_cfg, tsim_off), ("full", full_cfg, tsim_full)]:
-            o, _ = run_tsim(tsim, cfg_path, Path(tmp) / label)
+        for label, cfg_path in [("default", off_cfg), ("full", full_cfg), ("hdf5", args.config)]:
+            o, wall, cpu = run_tsim_timed(tsim, cfg_path, Path(tmp) / label)
+            tsim_runs[label].append((wall, cpu))
             d = o["summary"]["deployment"]
-            times.append(d["wall_seconds"])
             tsim_counts[label] = (d["newton_iterations"], d["factorizations"])
-        o, _ = run_tsim(tsim, args.config, Path(tmp) / "on")
-        tsim_on.append(o["summary"]["deployment"]["wall_seconds"])
-        b, l, os_final = run_opensees_timed(ops, case, system, args.tol, 1)
-        os_build += b
-        os_loop += l
         for alg in algorithms:
             if alg in alg_failed:
                 continue
             try:
-                _, l, alg_final[alg] = run_opensees_timed(ops, case, system, args.tol, 1, alg)
-                alg_loop[alg] += l
+                *times, alg_final[alg] = run_opensees_process(case_file, args.system, args.tol, alg)
+                os_runs[alg].append(tuple(times))
             except OpenSeesFailed as e:
                 alg_failed[alg] = str(e)
-        print(f"rep {rep + 1}/{args.reps}: load {loads[-1]:.2f}, tsim off {tsim_off[-1]:.3f} s "
-              f"(full Newton {tsim_full[-1]:.3f} s), tsim HDF5 {tsim_on[-1]:.3f} s, OpenSees {os_loop[-1]:.3f} s"
-              + "".join(f", {a} {alg_loop[a][-1]:.3f} s" for a in algorithms if a not in alg_failed),
+        print(f"round {rep + 1}/{args.reps}: load {loads[-1]:.2f}; wall (CPU) [s]: tsim off, full Newton, HDF5 "
+              + " ".join(f"{tsim_runs[k][-1][0]:.3f} ({tsim_runs[k][-1][1]:.3f})" for k in tsim_runs)
+              + "".join(f"; OpenSees {a} {os_runs[a][-1][0]:.3f} ({os_runs[a][-1][1]:.3f})"
+                        for a in algorithms if a not in alg_failed),
               file=sys.stderr)
+    if "Newton" in alg_failed:
+        raise SystemExit(alg_failed["Newton"])
     others = {}
     if args.compare_systems:
         for s in ["BandSPD", "ProfileSPD", "BandGeneral", "FullGeneral", "UmfPack"]:
@@ -408,7 +475,7 @@ def main():
     if traj is None:
         raise SystemExit(f"OpenSees failed at step {failed_at}")
     cmp_ = compare(case, traj, height)
-    timed_vs_recorded = np.abs(os_final - traj[-1]).max() / height
+    timed_vs_recorded = np.abs(alg_final["Newton"] - traj[-1]).max() / height
     variants = {}
     if args.variants:
         for label, kw in [("zero initial acceleration (OpenSees default)", {"consistent_a0": False}),
@@ -421,10 +488,13 @@ def main():
     load_end = load_average()
 
     # Table.
-    med = statistics.median
-    t_off, t_full, t_on, t_os, t_build = med(tsim_off), med(tsim_full), med(tsim_on), med(os_loop), med(os_build)
-    alg_med = {a: med(t) for a, t in alg_loop.items() if a not in alg_failed}
-    fastest = min([("Newton", t_os)] + list(alg_med.items()), key=lambda kv: kv[1])
+    def med(runs, k):
+        return statistics.median(r[k] for r in runs)
+
+    timed = [a for a in algorithms if a not in alg_failed]
+    # The fastest OpenSees algorithm by in-process CPU time.
+    fastest = min(timed, key=lambda a: med(os_runs[a], 1))
+    ratio = {(a, k): med(os_runs[a], k) / med(tsim_runs["default"], k) for a in timed for k in (0, 1)}
     ref_final = case["position"][-1]
     m = machine()
     versions = {
@@ -452,7 +522,7 @@ def main():
     lines = [
         "# tsim vs OpenSeesPy: the paper model's deployment",
         "",
-        "Issue 6, item 1b. Reproduce: `scripts/bench_opensees" + "".join(" " + a for a in reproduce_args) + "`",
+        "Issues 6 (item 1b) and 16 (speed on the small model). Reproduce: `scripts/bench_opensees" + "".join(" " + a for a in reproduce_args) + "`",
         "(installs libblas3, openseespy and PyYAML, builds tsim in release, runs both, rewrites",
         "this file). Case:",
         "`configs/bench_elastic.yaml`, the paper's 5×2 tower (20 nodes, 50 members, 52 free DOF)",
@@ -470,43 +540,53 @@ def main():
         "",
         f"Machine: {m['nproc']} cores, {m['cpu']}, Linux {m['kernel']}; "
         f"{datetime.date.today().isoformat()}; 1-min load average {min(loads):.2f}–{max(loads):.2f} "
-        "before the timed repetitions (shared machine).",
+        f"before the timed rounds, {load_end:.2f} at the end (shared machine"
+        + (f"; loaded: more runnable tasks than its {m['nproc']} cores, so wall times are inflated" if max(loads) > m["nproc"] else "")
+        + ").",
         f"Versions: tsim {versions['tsim']} built from {source} (release profile), rustc {versions['rustc']}, "
         f"openseespy {versions['openseespy']}, Python {versions['Python']}, NumPy {versions['NumPy']}.",
         "",
-        f"Timings: median (best) of {args.reps} interleaved repetitions. tsim: the deployment stage's",
-        "wall time from outcome.json (`deployment.wall_seconds`; one process per run, the earlier",
-        f"stages not counted). OpenSees: one `analyze({steps}, {case['dt']:g})` call; model building",
-        "(wipe, nodes, materials, elements, loads, analysis objects) timed separately.",
+        f"Timings: medians of {args.reps} interleaved rounds; each run is a process of its own, timed",
+        "by wall clock and by CPU time (user + system of the child process, from the kernel:",
+        "on a loaded machine the CPU time is the steadier figure). tsim: the whole `tsim run`",
+        "process (form-finding, substitution, eigen, folding, deployment, the case's files).",
+        "OpenSees: one Python process per run that imports openseespy, loads the case, builds",
+        f"the model and runs one `analyze({steps}, {case['dt']:g})`; *in-process* is build + analyze",
+        "measured inside that process (Python's start, the import and the case loading left out),",
+        "*process* the whole of it. The ratios divide OpenSees' in-process time by tsim's whole",
+        "process: the comparison least favourable to tsim.",
         "",
-        "| program | setting | deployment [s] | steps/s | Newton iterations | factorizations |",
+        "| program | setting | wall [s] | CPU [s] | Newton iterations | factorizations |",
         "|---|---|---|---|---|---|",
-        f"| tsim | outputs off (default: tangent reuse) | {t_off:.3f} ({min(tsim_off):.3f}) | {steps / t_off:,.0f} | "
-        f"{tsim_counts['default'][0]} | {tsim_counts['default'][1]} |",
-        f"| tsim | outputs off, full Newton (`newton.tangent: full`) | {t_full:.3f} ({min(tsim_full):.3f}) | "
-        f"{steps / t_full:,.0f} | {tsim_counts['full'][0]} | {tsim_counts['full'][1]} |",
-        f"| tsim | HDF5 every step (default) | {t_on:.3f} ({min(tsim_on):.3f}) | {steps / t_on:,.0f} | | |",
-        f"| OpenSeesPy | Newton, analysis loop | {t_os:.3f} ({min(os_loop):.3f}) | {steps / t_os:,.0f} | {os_iters} | {os_iters} |",
     ]
+    for label, setting in [("default", "whole process, outputs off (default: tangent reuse)"),
+                           ("full", "whole process, outputs off, full Newton (`newton.tangent: full`)"),
+                           ("hdf5", "whole process, HDF5 every step (default)")]:
+        runs = tsim_runs[label]
+        counts = tsim_counts[label]
+        lines.append(f"| tsim | {setting} | {med(runs, 0):.3f} | {med(runs, 1):.3f} | {counts[0]} | {counts[1]} |")
     for alg in algorithms:
         if alg in alg_failed:
             lines.append(f"| OpenSeesPy | {alg} | {alg_failed[alg]} | | | |")
-        else:
-            diff = np.linalg.norm(alg_final[alg] - ref_final, axis=1).max() / height
-            lines.append(f"| OpenSeesPy | {alg}, analysis loop (final state {diff:.1e} H from tsim's) | "
-                         f"{alg_med[alg]:.3f} ({min(alg_loop[alg]):.3f}) | {steps / alg_med[alg]:,.0f} | | |")
+            continue
+        runs = os_runs[alg]
+        diff = np.linalg.norm(alg_final[alg] - ref_final, axis=1).max() / height
+        counts = f"{os_iters} | {os_iters}" if alg == "Newton" else " | "
+        lines.append(f"| OpenSeesPy | {alg}, in-process build + analyze (final state {diff:.1e} H from tsim's) | "
+                     f"{med(runs, 0):.3f} | {med(runs, 1):.3f} | {counts} |")
+        lines.append(f"| OpenSeesPy | {alg}, whole process | {med(runs, 2):.3f} | {med(runs, 3):.3f} | | |")
     lines += [
-        f"| OpenSeesPy | model building | {t_build:.4f} ({min(os_build):.4f}) | | | |",
         "",
-        f"**Ratio tsim / OpenSees (steps/s, tsim outputs off): {t_os / t_off:.2f}× on medians, "
-        f"{min(os_loop) / min(tsim_off):.2f}× on best times** (target ≥ 10×), both with their defaults",
-        f"(tsim: tangent reuse; OpenSees: Newton, as the issue sets). Against OpenSees' fastest algorithm here"
-        f" ({fastest[0]}): {fastest[1] / t_off:.2f}× on medians. Like for like, full Newton on both sides:"
-        f" {t_os / t_full:.2f}× on medians.",
+        f"**Ratio OpenSees / tsim (tsim whole process, outputs off, default tangent reuse): against"
+        f" Newton {ratio[('Newton', 1)]:.1f}× on CPU time, {ratio[('Newton', 0)]:.1f}× on wall time; against"
+        f" OpenSees' fastest algorithm here ({fastest}) {ratio[(fastest, 1)]:.1f}× on CPU time,"
+        f" {ratio[(fastest, 0)]:.1f}× on wall time** (issue 16's targets: 20× and 12×). Like for like, full"
+        f" Newton on both sides: {med(os_runs['Newton'], 1) / med(tsim_runs['full'], 1):.1f}× on CPU time.",
         "",
-        f"Runs [s]: tsim off {', '.join(f'{t:.3f}' for t in tsim_off)}; tsim full Newton {', '.join(f'{t:.3f}' for t in tsim_full)}; "
-        f"tsim HDF5 {', '.join(f'{t:.3f}' for t in tsim_on)}; OpenSees {', '.join(f'{t:.3f}' for t in os_loop)}"
-        + "".join(f"; {a} {', '.join(f'{t:.3f}' for t in alg_loop[a])}" for a in algorithms if a not in alg_failed) + ".",
+        "Runs, wall (CPU) [s]: "
+        + "; ".join(f"tsim {k} " + ", ".join(f"{w:.3f} ({c:.3f})" for w, c in v) for k, v in tsim_runs.items())
+        + "".join(f"; OpenSees {a} in-process " + ", ".join(f"{r[0]:.3f} ({r[1]:.3f})" for r in os_runs[a])
+                  for a in timed) + ".",
     ]
     if others:
         lines += ["", "OpenSees with other linear systems (analysis loop, median): "

@@ -1,9 +1,10 @@
 use super::Rayleigh;
 use crate::solve::{bisect, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
 use crate::tsm::{
-    assemble_objective_damping, assemble_tangents, member_damping_all, objective_damping, tangent_pattern, tangent_product, Assembly,
-    MemberState,
+    assemble_objective_damping, assemble_tangents, block_product, member_damping_all, objective_damping, scaled_blocks, tangent_pattern,
+    Assembly, MemberState,
 };
+use nalgebra::Matrix3;
 
 /// The energy ledger of one converged step [J].
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -105,6 +106,9 @@ pub struct Newmark<'a> {
     fd: Vec<f64>,
     /// Member states whose K_T the βK term uses (unused for `Current`).
     damp_states: Vec<MemberState>,
+    /// β k per member of the βK term's states ([`scaled_blocks`]; unused for `Objective`):
+    /// re-formed when those states change, not at every residual.
+    damp_blocks: Vec<Matrix3<f64>>,
     /// Energy ledger since the stage began.
     pub energy: Energy,
     /// KE + SE at the start of the stage: the balance is KE + SE + D − W − E0.
@@ -122,19 +126,6 @@ pub struct Newmark<'a> {
     fd_next: Vec<f64>,
 }
 
-/// The Rayleigh damping force α M v + (the β term of `damping`, with member `states`) on
-/// the free DOFs into `out`.
-fn damping_force(asm: &Assembly, damping: Damping, mass: &[f64], states: &[MemberState], v: &[f64], out: &mut [f64]) {
-    let Damping { rayleigh, tangent } = damping;
-    for i in 0..v.len() {
-        out[i] = rayleigh.alpha * mass[i] * v[i];
-    }
-    match tangent {
-        DampingTangent::Objective => objective_damping(asm.model, states, asm.dofs, v, rayleigh.beta, out),
-        _ => tangent_product(asm.model, states, asm.dofs, v, rayleigh.beta, out),
-    }
-}
-
 impl<'a> Newmark<'a> {
     /// Starts at the state of `asm` with velocities `v` under external force `f0`, with
     /// the consistent initial acceleration a0 = M⁻¹(f0 − C v0 − p(x0)).
@@ -145,6 +136,7 @@ impl<'a> Newmark<'a> {
         let ws = Some(NewtonWorkspace::new(n, &newton, true, || tangent_pattern(asm.model, asm.dofs)));
         let mut s = Newmark {
             damp_states: asm.states.clone(),
+            damp_blocks: vec![Matrix3::zeros(); asm.states.len()],
             asm,
             params,
             rayleigh: damping.rayleigh,
@@ -167,7 +159,10 @@ impl<'a> Newmark<'a> {
             v_next: vec![0.0; n],
             fd_next: vec![0.0; n],
         };
-        damping_force(&s.asm, s.damping(), &s.mass, &s.damp_states, &s.v, &mut s.fd);
+        s.update_damping_blocks();
+        let mut fd = std::mem::take(&mut s.fd);
+        s.damping_force(&s.v, &mut fd);
+        s.fd = fd;
         for i in 0..n {
             s.a[i] = (s.f[i] - s.fd[i] - s.asm.p_free(i)) / s.mass[i];
         }
@@ -200,10 +195,26 @@ impl<'a> Newmark<'a> {
         }
     }
 
-    fn damping(&self) -> Damping {
-        Damping {
-            rayleigh: self.rayleigh,
-            tangent: self.tangent,
+    /// Re-forms `damp_blocks` from the states the βK term uses now.
+    fn update_damping_blocks(&mut self) {
+        let states = match self.tangent {
+            DampingTangent::Objective => return,
+            DampingTangent::Current => &self.asm.states,
+            DampingTangent::Initial | DampingTangent::LastConverged => &self.damp_states,
+        };
+        scaled_blocks(states, self.rayleigh.beta, &mut self.damp_blocks);
+    }
+
+    /// The Rayleigh damping force α M v + the β term (per `tangent`) on the free DOFs at
+    /// velocities `v` into `out`.
+    fn damping_force(&self, v: &[f64], out: &mut [f64]) {
+        for i in 0..v.len() {
+            out[i] = self.rayleigh.alpha * self.mass[i] * v[i];
+        }
+        let asm = &self.asm;
+        match self.tangent {
+            DampingTangent::Objective => objective_damping(asm.model, &asm.states, asm.dofs, v, self.rayleigh.beta, out),
+            _ => block_product(asm.model, &self.damp_blocks, asm.dofs, v, out),
         }
     }
 
@@ -285,6 +296,7 @@ impl<'a> Newmark<'a> {
             // at the end of the previous step, so that between steps `damp_states` are still
             // those the last converged equation used (`member_damping_force`).
             self.damp_states.copy_from_slice(&self.asm.states);
+            self.update_damping_blocks();
         }
         let n = self.mass.len();
         let t_next = self.time + dt;
@@ -312,6 +324,9 @@ impl<'a> Newmark<'a> {
         };
         // Commit: positions, accelerations, velocities, damping force, energy ledger.
         self.asm.set_free(&trial);
+        if self.tangent == DampingTangent::Current {
+            self.update_damping_blocks();
+        }
         let c_a = 1.0 / (beta * dt * dt);
         let (mut dw, mut dd) = (0.0, 0.0);
         self.next_velocity(&trial, dt);
@@ -319,14 +334,7 @@ impl<'a> Newmark<'a> {
             *a = c_a * (u - base);
         }
         let mut fd_next = std::mem::take(&mut self.fd_next);
-        damping_force(
-            &self.asm,
-            self.damping(),
-            &self.mass,
-            self.damping_states(),
-            &self.v_next,
-            &mut fd_next,
-        );
+        self.damping_force(&self.v_next, &mut fd_next);
         // Trapezoidal work of the forces each equation actually used: with average
         // acceleration this is the discrete energy identity of the scheme.
         for i in 0..n {
@@ -369,10 +377,13 @@ impl Residual for StepProblem<'_, '_> {
         let (c_a, _) = self.coefficients();
         let nm = &mut *self.nm;
         nm.asm.set_free(u);
+        if nm.tangent == DampingTangent::Current {
+            nm.update_damping_blocks();
+        }
         nm.next_velocity(u, self.dt);
         let n = u.len();
         let mut fd = std::mem::take(&mut nm.fd_next);
-        damping_force(&nm.asm, nm.damping(), &nm.mass, nm.damping_states(), &nm.v_next, &mut fd);
+        nm.damping_force(&nm.v_next, &mut fd);
         let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);
         for i in 0..n {
             let m = nm.mass[i];
@@ -513,6 +524,7 @@ mod tests {
                 let mut k = Mat::<f64>::zeros(n, n);
                 problem.tangent(&mut k);
                 let v_frozen = problem.nm.v_next.clone();
+                let mut blocks = problem.nm.damp_blocks.clone();
                 let h = 1e-6;
                 let (mut rp, mut rm, mut gp, mut gm) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
                 let mut worst: f64 = 0.0;
@@ -524,11 +536,13 @@ mod tests {
                     problem.residual(&up, &mut rp);
                     let nm = &*problem.nm;
                     gp.fill(0.0);
-                    tangent_product(nm.asm.model, &nm.asm.states, nm.asm.dofs, &v_frozen, nm.rayleigh.beta, &mut gp);
+                    scaled_blocks(&nm.asm.states, nm.rayleigh.beta, &mut blocks);
+                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gp);
                     problem.residual(&um, &mut rm);
                     let nm = &*problem.nm;
                     gm.fill(0.0);
-                    tangent_product(nm.asm.model, &nm.asm.states, nm.asm.dofs, &v_frozen, nm.rayleigh.beta, &mut gm);
+                    scaled_blocks(&nm.asm.states, nm.rayleigh.beta, &mut blocks);
+                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gm);
                     for i in 0..n {
                         let exact = -(rp[i] - rm[i]) / (2.0 * h);
                         let omitted = (gp[i] - gm[i]) / (2.0 * h);

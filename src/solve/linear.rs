@@ -15,6 +15,8 @@ use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuRef, NumericLu, Symbolic
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
 
+use super::small_solve::{cholesky_solve_in_place, SMALL_SOLVE};
+
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum LinearError {
     /// The matrix is singular (or, for the sparse path, not factorizable) at free DOF
@@ -84,13 +86,17 @@ enum Factored {
 const SINGULAR_PIVOT: f64 = 1e-13;
 
 /// Dense solver: Cholesky first (the Newmark step matrix and a stable structure's K_T are
-/// symmetric positive definite, and Cholesky costs half an LU), partial-pivoting LU when
+/// symmetric positive definite, and Cholesky costs half an LU; its solves up to
+/// [`SMALL_SOLVE`] rows by the plain loops of `small_solve.rs`), partial-pivoting LU when
 /// Cholesky fails (an indefinite static state). With row pivoting only, U's j-th pivot
 /// belongs to column j, i.e. to free DOF j, which is what a singularity report names.
 pub struct DenseSolver {
     k: Mat<f64>,
     /// Factor storage; `k` is kept for the LU fallback.
     work: Mat<f64>,
+    /// 1 / L[j, j] of the Cholesky factor, for the small solves (empty above
+    /// [`SMALL_SOLVE`] rows).
+    inv_diag: Vec<f64>,
     perm: Vec<usize>,
     perm_inv: Vec<usize>,
     mem: MemBuffer,
@@ -108,6 +114,7 @@ impl DenseSolver {
         DenseSolver {
             k: Mat::zeros(n, n),
             work: Mat::zeros(n, n),
+            inv_diag: if n <= SMALL_SOLVE { vec![0.0; n] } else { Vec::new() },
             perm: vec![0; n],
             perm_inv: vec![0; n],
             mem: MemBuffer::new(req),
@@ -140,6 +147,9 @@ impl TangentSolver for DenseSolver {
                 Default::default(),
             );
             if llt.is_ok() {
+                for (j, inv) in self.inv_diag.iter_mut().enumerate() {
+                    *inv = 1.0 / self.work[(j, j)];
+                }
                 self.factored = Factored::Cholesky;
                 return Ok(());
             }
@@ -170,12 +180,17 @@ impl TangentSolver for DenseSolver {
     }
 
     fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
-        let x = faer::ColMut::from_slice_mut(rhs).as_mat_mut();
+        let n = self.k.nrows();
         let stack = MemStack::new(&mut self.mem);
         match self.factored {
-            Factored::Cholesky => llt_solve::solve_in_place_with_conj(self.work.as_ref(), Conj::No, x, Par::Seq, stack),
+            Factored::Cholesky if !self.inv_diag.is_empty() => cholesky_solve_in_place(&self.work, &self.inv_diag, rhs),
+            Factored::Cholesky => {
+                let x = faer::ColMut::from_slice_mut(rhs).as_mat_mut();
+                llt_solve::solve_in_place_with_conj(self.work.as_ref(), Conj::No, x, Par::Seq, stack)
+            }
             Factored::Lu => {
-                let perm = PermRef::new_checked(&self.perm, &self.perm_inv, self.k.nrows());
+                let perm = PermRef::new_checked(&self.perm, &self.perm_inv, n);
+                let x = faer::ColMut::from_slice_mut(rhs).as_mat_mut();
                 lu_solve::solve_in_place_with_conj(self.k.as_ref(), self.k.as_ref(), perm, Conj::No, x, Par::Seq, stack)
             }
             Factored::None => panic!("TangentSolver::solve before a successful factor()"),

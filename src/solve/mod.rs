@@ -6,6 +6,7 @@ mod bisect;
 mod eigen;
 mod linear;
 mod newton;
+pub mod small_solve;
 
 pub use bisect::bisect;
 pub use eigen::{krylov_dimension, partial_eigen, Diagonal, EigenError, EigenPairs, Shift};

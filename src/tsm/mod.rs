@@ -191,18 +191,26 @@ pub fn assemble_objective_damping(
     }
 }
 
-/// out += factor · K_T(states) · v on the free DOFs, member by member (no matrix): the
-/// βK part of paper-style Rayleigh damping.
-pub fn tangent_product(model: &Model, states: &[MemberState], dofs: &DofMap, v: &[f64], factor: f64, out: &mut [f64]) {
-    for (mem, s) in model.members.iter().zip(states) {
-        let f = member_block(s) * relative(dofs, v, mem.nodes) * factor;
-        scatter(dofs, mem.nodes, &f, out);
+/// factor · k for every member (k: [`member_block`]) into `blocks`: the member blocks of
+/// factor · K_T(states), formed once for as many products as the states stay fixed (the
+/// βK term on the last converged tangent, within a time step).
+pub fn scaled_blocks(states: &[MemberState], factor: f64, blocks: &mut [Matrix3<f64>]) {
+    for (b, s) in blocks.iter_mut().zip(states) {
+        *b = member_block(s) * factor;
+    }
+}
+
+/// out += K·v on the free DOFs, member by member (no matrix), with K's member `blocks`
+/// from [`scaled_blocks`]: the βK part of paper-style Rayleigh damping.
+pub fn block_product(model: &Model, blocks: &[Matrix3<f64>], dofs: &DofMap, v: &[f64], out: &mut [f64]) {
+    for (mem, k) in model.members.iter().zip(blocks) {
+        scatter(dofs, mem.nodes, &(k * relative(dofs, v, mem.nodes)), out);
     }
 }
 
 /// out (over all 3n node directions, supported ones included) += the stiffness-proportional
 /// damping force of every member: [`objective_damping`]'s when `objective`, else
-/// [`tangent_product`]'s, with the same member forces. Each member's force is a pair
+/// [`block_product`]'s, with the same member forces. Each member's force is a pair
 /// (+f, −f) on its ends, so what reaches a supported direction is its share of the
 /// support's reaction.
 pub fn member_damping_all(model: &Model, states: &[MemberState], dofs: &DofMap, v: &[f64], factor: f64, objective: bool, out: &mut [f64]) {
