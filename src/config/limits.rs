@@ -11,6 +11,7 @@
 use super::schema::CaseConfig;
 use crate::model::Model;
 use crate::solve::{LinearSolverChoice, DENSE_LIMIT};
+use crate::stage::stability::DENSE_STABILITY_LIMIT;
 
 /// Default limit on the estimated output of one run [GB]: far above the runs tsim ships
 /// (configs/sweep.yaml, 27 cases, about 2 GB uncompressed) and below a laptop's free disk
@@ -250,10 +251,18 @@ impl CaseConfig {
                 bytes: pattern * 16.0 * (1.0 + SPARSE_FILL),
             }
         };
-        let stability = |stage: &str| Part {
-            field: "model".into(),
-            what: format!("{stage}: the stability check's dense K_T and its eigen decomposition on {n} free DOF (5 n² × 8 B)"),
-            bytes: STABILITY_MATRICES * dense(n),
+        let stability = |stage: &str| match n as usize {
+            0..=DENSE_STABILITY_LIMIT => Part {
+                field: "model".into(),
+                what: format!("{stage}: the stability check's dense K_T and its eigen decomposition on {n} free DOF (5 n² × 8 B)"),
+                bytes: STABILITY_MATRICES * dense(n),
+            },
+            // Above, a sparse Cholesky of K_T, taken as large as a sparse Newton solver's.
+            _ => Part {
+                field: "model".into(),
+                what: format!("{stage}: the stability check's sparse Cholesky of K_T on {n} free DOF"),
+                bytes: (9.0 * nodes + 18.0 * members) * 16.0 * (1.0 + SPARSE_FILL),
+            },
         };
         let mut stages = vec![solver, stability("substitution")];
         if self.eigen.is_some() {

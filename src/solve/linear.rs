@@ -66,8 +66,15 @@ pub trait TangentSolver: TangentSink + Send {
     /// matrix is consumed (clear before the next assembly). A `symmetric` matrix is tried
     /// with Cholesky first (which reads one triangle only); any other goes to LU directly.
     fn factor(&mut self, symmetric: bool) -> Result<(), LinearError>;
+    /// Factors the assembled (symmetric) matrix by Cholesky only: `false` where it is not
+    /// positive definite, and then nothing is factored and the assembled matrix is kept
+    /// (entries may still be added, e.g. a diagonal shift, and the factorization retried).
+    fn cholesky(&mut self) -> bool;
     /// Solves K x = rhs in place (rhs becomes x) with the last factorization.
     fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError>;
+    /// Whether the last factorization is a Cholesky one, i.e. the matrix was symmetric
+    /// positive definite (to round-off).
+    fn positive_definite(&self) -> bool;
 }
 
 /// Which factorization a solver holds.
@@ -127,22 +134,24 @@ impl TangentSolver for DenseSolver {
         self.k.fill(0.0);
     }
 
+    fn cholesky(&mut self) -> bool {
+        self.work.copy_from(&self.k);
+        let llt = llt_factor::cholesky_in_place(
+            self.work.as_mut(),
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+            Default::default(),
+        );
+        self.factored = if llt.is_ok() { Factored::Cholesky } else { Factored::None };
+        llt.is_ok()
+    }
+
     fn factor(&mut self, symmetric: bool) -> Result<(), LinearError> {
         let n = self.k.nrows();
         self.factored = Factored::None;
-        if symmetric {
-            self.work.copy_from(&self.k);
-            let llt = llt_factor::cholesky_in_place(
-                self.work.as_mut(),
-                Default::default(),
-                Par::Seq,
-                MemStack::new(&mut self.mem),
-                Default::default(),
-            );
-            if llt.is_ok() {
-                self.factored = Factored::Cholesky;
-                return Ok(());
-            }
+        if symmetric && self.cholesky() {
+            return Ok(());
         }
         lu_factor::lu_in_place(
             self.k.as_mut(),
@@ -181,6 +190,10 @@ impl TangentSolver for DenseSolver {
             Factored::None => panic!("TangentSolver::solve before a successful factor()"),
         }
         Ok(())
+    }
+
+    fn positive_definite(&self) -> bool {
+        self.factored == Factored::Cholesky
     }
 }
 
@@ -308,30 +321,35 @@ impl TangentSolver for SparseSolver {
         self.values.fill(0.0);
     }
 
+    fn cholesky(&mut self) -> bool {
+        let n = self.col_ptr.len() - 1;
+        let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let a = SparseColMatRef::new(structure, &self.values);
+        let llt = self.symbolic.factorize_numeric_llt(
+            &mut self.l_values,
+            a,
+            Side::Lower,
+            LltRegularization::default(),
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+            Default::default(),
+        );
+        (self.factored, self.failed_pivot) = match llt {
+            Ok(_) => (Factored::Cholesky, None),
+            Err(e) => (Factored::None, Some(self.pivot_dof(e))),
+        };
+        self.factored == Factored::Cholesky
+    }
+
     fn factor(&mut self, symmetric: bool) -> Result<(), LinearError> {
         let n = self.col_ptr.len() - 1;
         self.factored = Factored::None;
         self.failed_pivot = None;
+        if symmetric && self.cholesky() {
+            return Ok(());
+        }
         let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
         let a = SparseColMatRef::new(structure, &self.values);
-        if symmetric {
-            let llt = self.symbolic.factorize_numeric_llt(
-                &mut self.l_values,
-                a,
-                Side::Lower,
-                LltRegularization::default(),
-                Par::Seq,
-                MemStack::new(&mut self.mem),
-                Default::default(),
-            );
-            match llt {
-                Ok(_) => {
-                    self.factored = Factored::Cholesky;
-                    return Ok(());
-                }
-                Err(e) => self.failed_pivot = Some(self.pivot_dof(e)),
-            }
-        }
         let singular = LinearError::Singular {
             dof: self.failed_pivot,
             ratio: None,
@@ -372,6 +390,10 @@ impl TangentSolver for SparseSolver {
             }
             _ => panic!("TangentSolver::solve before a successful factor()"),
         }
+    }
+
+    fn positive_definite(&self) -> bool {
+        self.factored == Factored::Cholesky
     }
 }
 

@@ -3,7 +3,7 @@
 //! the paper, but the common scheme takes any law (a model given with real rest lengths
 //! is brought to its equilibrium the same way).
 
-use super::eigen::{lowest_stiffness, tangent_matrix};
+use super::stability::stability;
 use super::{solve_error, Analysis, Settings, StaticEquilibrium};
 use crate::error::Result;
 use crate::model::height;
@@ -17,13 +17,22 @@ use crate::tsm::{tangent_pattern, Assembly, DofMap};
 #[derive(Clone, Copy, Debug)]
 pub struct SelfEquilibrium {
     pub name: &'static str,
+    /// Newton seeks a minimum of the potential ([`NewtonWorkspace::minimize`]).
+    pub minimize: bool,
 }
 
 impl SelfEquilibrium {
     /// Form-finding with virtual measure-potential elements.
-    pub const FORM_FINDING: SelfEquilibrium = SelfEquilibrium { name: "form-finding" };
-    /// The equilibrium of a model given with real rest lengths.
-    pub const GIVEN: SelfEquilibrium = SelfEquilibrium { name: "equilibrium" };
+    pub const FORM_FINDING: SelfEquilibrium = SelfEquilibrium {
+        name: "form-finding",
+        minimize: true,
+    };
+    /// The equilibrium of a model given with real rest lengths (its Newton path kept as
+    /// it was: these models start at or next to their equilibrium).
+    pub const GIVEN: SelfEquilibrium = SelfEquilibrium {
+        name: "equilibrium",
+        minimize: false,
+    };
 }
 
 /// What an equilibrium solve found, besides the state.
@@ -52,6 +61,7 @@ impl Analysis for SelfEquilibrium {
         let asm = Assembly::new(model, &structure.elements, &dofs, state.positions);
         let mut u = asm.free_coordinates();
         let mut ws = NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_pattern(model, &dofs));
+        ws.minimize = self.minimize;
         let mut problem = StaticEquilibrium {
             asm,
             load: vec![0.0; dofs.len()],
@@ -64,15 +74,15 @@ impl Analysis for SelfEquilibrium {
             .filter(|&i| dofs.free(i / 3, i % 3).is_none())
             .map(|i| asm.p[i].abs())
             .fold(0.0, f64::max);
-        let (lowest_stiffness, lowest_stiffness_at) = lowest_stiffness(&tangent_matrix(&asm), &dofs, model)?;
+        let stable = stability(&asm, &dofs, model)?;
         let found = Equilibrium {
             forces: asm.states.iter().map(|s| s.force).collect(),
             lengths: asm.states.iter().map(|s| s.length).collect(),
             residuals: ws.history,
             energies: ws.energies,
             max_reaction,
-            lowest_stiffness,
-            lowest_stiffness_at,
+            lowest_stiffness: stable.lowest,
+            lowest_stiffness_at: stable.at,
         };
         Ok((State::at_rest(asm.x), found))
     }

@@ -9,6 +9,7 @@ pub mod fold;
 pub mod formfind;
 mod frames;
 pub mod measure;
+pub mod stability;
 pub mod static_load;
 mod statics;
 pub mod substitute;

@@ -432,7 +432,7 @@ impl Analysis for StaticLoad {
         recorder.end_stage(Stage::Static).map_err(record_error("static"))?;
         steps.summary.equilibrium = steps.frames.check.into();
         let asm = Assembly::new(model, &structure.elements, &dofs, x);
-        steps.summary.lowest_stiffness = super::eigen::lowest_stiffness(&super::eigen::tangent_matrix(&asm), &dofs, model)?.0;
+        steps.summary.lowest_stiffness = super::stability::stability(&asm, &dofs, model)?.lowest;
         Ok((State::at_rest(asm.x), steps.summary))
     }
 }
