@@ -112,7 +112,11 @@ fn sparse_stability_equals_dense() {
             dense.lowest
         );
         assert_eq!(sparse.largest_diagonal, dense.largest_diagonal, "{name}");
-        assert_eq!(sparse.at, dense.at, "{name}");
+        // The tower's lowest eigenvalue is a pair (its five-fold symmetry): the DOF its
+        // eigenvector moves most depends on the vector chosen in that plane.
+        if name == "grid" {
+            assert_eq!(sparse.at, dense.at);
+        }
         assert_eq!(dense.lowest < 0.0, name == "tower", "{name}: {}", dense.lowest);
     }
 }
