@@ -72,9 +72,6 @@ pub trait TangentSolver: TangentSink + Send {
     fn cholesky(&mut self) -> bool;
     /// Solves K x = rhs in place (rhs becomes x) with the last factorization.
     fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError>;
-    /// Whether the last factorization is a Cholesky one, i.e. the matrix was symmetric
-    /// positive definite (to round-off).
-    fn positive_definite(&self) -> bool;
 }
 
 /// Which factorization a solver holds.
@@ -190,10 +187,6 @@ impl TangentSolver for DenseSolver {
             Factored::None => panic!("TangentSolver::solve before a successful factor()"),
         }
         Ok(())
-    }
-
-    fn positive_definite(&self) -> bool {
-        self.factored == Factored::Cholesky
     }
 }
 
@@ -390,10 +383,6 @@ impl TangentSolver for SparseSolver {
             }
             _ => panic!("TangentSolver::solve before a successful factor()"),
         }
-    }
-
-    fn positive_definite(&self) -> bool {
-        self.factored == Factored::Cholesky
     }
 }
 
