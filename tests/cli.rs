@@ -1016,3 +1016,27 @@ fn completions_know_the_commands() {
     }
     assert_eq!(tsim(&["completions", "cmd.exe"]).status.code(), Some(2));
 }
+
+/// A grid's bad values are each named at their line: zero modules, a negative cell, a grid
+/// beside a tower.
+#[test]
+fn a_bad_grid_is_refused_at_its_lines() {
+    let text = "name: g\nmodel:\n  grid:\n    nx: 0\n    ny: 2\n    cell: -1.0\nformfinding: {}\nsubstitution: { strut: aluminium, cable: steel_cable }\n";
+    let (out, path) = bad_config(text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&format!("{}: `model.grid.nx`: is 0", at(&path, text, "nx: 0"))),
+        "{err}"
+    );
+    assert!(
+        err.contains(&format!("{}: `model.grid.cell`", at(&path, text, "cell: -1.0"))),
+        "{err}"
+    );
+    let both = text
+        .replace("  grid:\n", "  tower: { struts: 3 }\n  grid:\n")
+        .replace("nx: 0", "nx: 1")
+        .replace("-1.0", "1.0");
+    let (out, _) = bad_config(&both);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("`model`: give one of `tower`, `grid`"), "{err}");
+}

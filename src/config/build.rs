@@ -6,9 +6,10 @@ use nalgebra::Vector3;
 impl ModelSpec {
     /// The model this spec describes, validated.
     pub fn build(&self) -> Result<Model, ModelError> {
-        let model = match &self.tower {
-            Some(tower) => tower.build(),
-            None => {
+        let model = match (&self.tower, &self.grid) {
+            (Some(tower), _) => tower.build(),
+            (None, Some(grid)) => grid.build(),
+            (None, None) => {
                 let nodes: Vec<Node> = self
                     .nodes
                     .iter()

@@ -3,6 +3,7 @@ use super::loading::{AssignSpec, GroundMotionSpec, InitialSpec, NodalForceSpec, 
 use super::materials::MaterialSpec;
 use crate::dynamics::{DampingTangent, LoadProfile, NewmarkParams};
 use crate::model::generate::TowerSpec;
+use crate::model::grid::GridSpec;
 use crate::model::MemberKind;
 use crate::solve::NewtonSettings;
 use crate::stage::eigen::{EigenSolverChoice, ModeSolver, DEFAULT_PARTIAL_MODES};
@@ -59,12 +60,16 @@ pub struct CaseConfig {
     pub limits: LimitSpec,
 }
 
-/// Either a generated tower or explicit nodes and members.
+/// A generated tower, a generated grid, or explicit nodes and members.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ModelSpec {
     #[serde(default)]
     pub tower: Option<TowerSpec>,
+    /// Never written when unset, so that `case.yaml` of a tower or explicit model reads
+    /// as before (it is compared on resume).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grid: Option<GridSpec>,
     #[serde(default)]
     pub nodes: Vec<NodeSpec>,
     #[serde(default)]

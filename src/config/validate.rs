@@ -3,6 +3,7 @@ use super::loading::{NodalVectorSpec, StartFrom, TimeFunctionSpec};
 use super::schema::*;
 use super::{LawSpec, MaterialSpec};
 use crate::model::generate::TowerSpec;
+use crate::model::grid::GridSpec;
 use crate::model::Model;
 use crate::solve::{krylov_dimension, NewtonSettings};
 use crate::stage::eigen::EigenSolverChoice;
@@ -153,7 +154,7 @@ impl CaseConfig {
     /// Whether the model has a support (a tower's base is supported); known without
     /// building the model, so that a model that does not build still gets the check.
     fn model_has_supports(&self) -> bool {
-        self.model.tower.is_some() || self.model.nodes.iter().any(|n| !n.fix.is_empty())
+        self.model.tower.is_some() || self.model.grid.is_some() || self.model.nodes.iter().any(|n| !n.fix.is_empty())
     }
 
     /// Built-in materials with this config's additions.
@@ -165,16 +166,20 @@ impl CaseConfig {
 
     /// Checks the model section; returns the model if it builds.
     fn check_model(&self, p: &mut Problems) -> Option<Model> {
-        if self.model.tower.is_some() && !self.model.nodes.is_empty() {
-            p.add("model", "give either `tower` or `nodes`/`members`, not both");
+        let given = [self.model.tower.is_some(), self.model.grid.is_some(), !self.model.nodes.is_empty()];
+        if given.iter().filter(|&&g| g).count() > 1 {
+            p.add("model", "give one of `tower`, `grid` or `nodes`/`members`, not several");
         }
+        let before = p.0.len();
         if let Some(t) = &self.model.tower {
-            let before = p.0.len();
             check_tower(t, p);
-            if p.0.len() > before {
-                // Building would only restate these.
-                return None;
-            }
+        }
+        if let Some(g) = &self.model.grid {
+            check_grid(g, p);
+        }
+        if p.0.len() > before {
+            // Building would only restate these.
+            return None;
         }
         let model = self.model.build().map_err(|e| p.add("model", e.to_string())).ok()?;
         if model.support_count() == 3 * model.node_count() {
@@ -290,6 +295,12 @@ impl CaseConfig {
                 "a generated tower needs a `formfinding` section (its nominal shape is not an equilibrium)",
             );
         }
+        if self.model.grid.is_some() {
+            p.add(
+                "model.grid",
+                "a generated grid needs a `formfinding` section (it has no rest lengths: form-finding gives them)",
+            );
+        }
     }
 }
 
@@ -341,6 +352,30 @@ fn check_tower(t: &TowerSpec, p: &mut Problems) {
             format!("{} m is too large for struts of {} m", t.radius, t.strut_length),
         );
     }
+}
+
+fn check_grid(g: &GridSpec, p: &mut Problems) {
+    for (key, n) in [("nx", g.nx), ("ny", g.ny)] {
+        if n < 1 {
+            p.add(
+                format!("model.grid.{key}"),
+                format!("is {n}; a grid needs at least 1 module along each side"),
+            );
+        }
+    }
+    if g.node_count() > MAX_NODES {
+        p.add(
+            "model.grid",
+            format!(
+                "nx × ny = {} × {} gives {} nodes; at most {MAX_NODES} are allowed",
+                g.nx,
+                g.ny,
+                g.node_count()
+            ),
+        );
+    }
+    p.positive("model.grid.cell", g.cell);
+    p.positive("model.grid.depth", g.depth);
 }
 
 /// `at`: the material's field path (`materials.<name>`, `substitution.assign[k].define`).

@@ -4,6 +4,7 @@
 //! stage of a sweep.
 
 pub mod generate;
+pub mod grid;
 pub mod names;
 mod validate;
 

@@ -149,7 +149,7 @@ fn factor_shifted(
             let mut sigma = -FIRST_SHIFT * scale.max(f64::MIN_POSITIVE);
             for _ in 0..SHIFT_TRIES {
                 assemble_shifted(solver, sigma);
-                if solver.factor_cholesky() {
+                if solver.cholesky() {
                     return Ok(sigma);
                 }
                 sigma *= SHIFT_STEP;

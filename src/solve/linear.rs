@@ -68,6 +68,10 @@ pub trait TangentSolver: TangentSink + Send {
     /// matrix is consumed (clear before the next assembly). A `symmetric` matrix is tried
     /// with Cholesky first (which reads one triangle only); any other goes to LU directly.
     fn factor(&mut self, symmetric: bool) -> Result<(), LinearError>;
+    /// Factors the assembled (symmetric) matrix by Cholesky only: `false` where it is not
+    /// positive definite, and then nothing is factored and the assembled matrix is kept
+    /// (entries may still be added, e.g. a diagonal shift, and the factorization retried).
+    fn cholesky(&mut self) -> bool;
     /// Solves K x = rhs in place (rhs becomes x) with the last factorization.
     fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError>;
 }
@@ -134,25 +138,31 @@ impl TangentSolver for DenseSolver {
         self.k.fill(0.0);
     }
 
+    fn cholesky(&mut self) -> bool {
+        self.work.copy_from(&self.k);
+        let llt = llt_factor::cholesky_in_place(
+            self.work.as_mut(),
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+            Default::default(),
+        );
+        if llt.is_err() {
+            self.factored = Factored::None;
+            return false;
+        }
+        for (j, inv) in self.inv_diag.iter_mut().enumerate() {
+            *inv = 1.0 / self.work[(j, j)];
+        }
+        self.factored = Factored::Cholesky;
+        true
+    }
+
     fn factor(&mut self, symmetric: bool) -> Result<(), LinearError> {
         let n = self.k.nrows();
         self.factored = Factored::None;
-        if symmetric {
-            self.work.copy_from(&self.k);
-            let llt = llt_factor::cholesky_in_place(
-                self.work.as_mut(),
-                Default::default(),
-                Par::Seq,
-                MemStack::new(&mut self.mem),
-                Default::default(),
-            );
-            if llt.is_ok() {
-                for (j, inv) in self.inv_diag.iter_mut().enumerate() {
-                    *inv = 1.0 / self.work[(j, j)];
-                }
-                self.factored = Factored::Cholesky;
-                return Ok(());
-            }
+        if symmetric && self.cholesky() {
+            return Ok(());
         }
         lu_factor::lu_in_place(
             self.k.as_mut(),
@@ -290,29 +300,6 @@ impl SparseSolver {
 }
 
 impl SparseSolver {
-    /// Factors the assembled matrix by Cholesky only (no LU fallback): whether it is
-    /// positive definite, as far as the factorization can tell. On failure the solver
-    /// holds no factorization.
-    pub fn factor_cholesky(&mut self) -> bool {
-        let n = self.col_ptr.len() - 1;
-        self.factored = Factored::None;
-        self.failed_pivot = None;
-        let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        let llt = self.symbolic.factorize_numeric_llt(
-            &mut self.l_values,
-            SparseColMatRef::new(structure, &self.values),
-            Side::Lower,
-            LltRegularization::default(),
-            Par::Seq,
-            MemStack::new(&mut self.mem),
-            Default::default(),
-        );
-        match llt {
-            Ok(_) => self.factored = Factored::Cholesky,
-            Err(e) => self.failed_pivot = Some(self.pivot_dof(e)),
-        }
-        self.factored == Factored::Cholesky
-    }
 }
 
 impl TangentSink for SparseSolver {
@@ -349,11 +336,31 @@ impl TangentSolver for SparseSolver {
         self.values.fill(0.0);
     }
 
+    fn cholesky(&mut self) -> bool {
+        let n = self.col_ptr.len() - 1;
+        let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let a = SparseColMatRef::new(structure, &self.values);
+        let llt = self.symbolic.factorize_numeric_llt(
+            &mut self.l_values,
+            a,
+            Side::Lower,
+            LltRegularization::default(),
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+            Default::default(),
+        );
+        (self.factored, self.failed_pivot) = match llt {
+            Ok(_) => (Factored::Cholesky, None),
+            Err(e) => (Factored::None, Some(self.pivot_dof(e))),
+        };
+        self.factored == Factored::Cholesky
+    }
+
     fn factor(&mut self, symmetric: bool) -> Result<(), LinearError> {
         let n = self.col_ptr.len() - 1;
         self.factored = Factored::None;
         self.failed_pivot = None;
-        if symmetric && self.factor_cholesky() {
+        if symmetric && self.cholesky() {
             return Ok(());
         }
         let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);

@@ -84,6 +84,13 @@ pub struct NewtonWorkspace {
     solver: Box<dyn TangentSolver>,
     /// Whether iterations may reuse the held factorization (see [`TangentUpdate`]).
     reuse: bool,
+    /// Seek a minimum of the potential: where the tangent is not positive definite, the
+    /// Newton direction comes from K + τI, the smallest τ = 10^k·τ0 that factors by
+    /// Cholesky (see [`shifted_cholesky`]). Off by default: folding follows its
+    /// equilibrium path through unstable states on purpose.
+    pub minimize: bool,
+    /// The last shift τ [N/m] (0: none was needed), where the next search starts.
+    shift: f64,
     /// The solver holds a factorization of the tangent at an earlier iterate.
     factored: bool,
     /// max|r| at each evaluation of the last solve, the first at the starting point [N].
@@ -116,6 +123,8 @@ impl NewtonWorkspace {
             r: vec![0.0; n],
             solver,
             reuse: settings.tangent.reuses(transient),
+            minimize: false,
+            shift: 0.0,
             factored: false,
             history: Vec::with_capacity(64),
             energies: Vec::with_capacity(64),
@@ -359,9 +368,13 @@ fn iterate(
             ws.factored = false;
             ws.solver.clear();
             problem.tangent(&mut *ws.solver);
-            ws.solver.factor(problem.symmetric())?;
+            if ws.minimize && problem.symmetric() && energy.is_some() {
+                factorizations += shifted_cholesky(ws, scale.force / length)?;
+            } else {
+                ws.solver.factor(problem.symmetric())?;
+                factorizations += 1;
+            }
             ws.factored = true;
-            factorizations += 1;
         }
         previous = res;
         ws.d.copy_from_slice(&ws.r);
@@ -385,6 +398,41 @@ fn iterate(
         }
     }
     unreachable!("the loop returns at its last iteration")
+}
+
+/// Most tenfold increases of the shift τ before giving up: from τ0 = (force scale)/(model
+/// size), a few N/m, 30 reach 1e30 τ0, beyond any stiffness a model has.
+const MAX_SHIFTS: u32 = 30;
+
+/// Factors the assembled K, or where it is not positive definite K + τI (Nocedal & Wright,
+/// Numerical Optimization, §3.4, Cholesky with added multiple of the identity): τ starts
+/// at a tenth of the last shift that was needed (or at `tau0`) and grows tenfold until
+/// Cholesky succeeds. Returns the factorizations made.
+///
+/// Why: far from equilibrium K_T of form-finding is indefinite (the struts' compression
+/// softens them sideways), and there the Newton direction may point uphill or towards a
+/// saddle; reversing it (the line search's fallback) gives a poor descent direction, and
+/// Newton may converge to a saddle, an unstable equilibrium (a 100-stage tower did both:
+/// 303 iterations to a shape with K_T's lowest eigenvalue −8.5e3 N/m). The shifted
+/// direction is a descent direction that moves little along the negative curvature; near
+/// a minimum K is positive definite and the step is Newton's again.
+fn shifted_cholesky(ws: &mut NewtonWorkspace, tau0: f64) -> Result<usize, SolveError> {
+    if ws.solver.cholesky() {
+        ws.shift = 0.0;
+        return Ok(1);
+    }
+    let n = ws.r.len();
+    let (mut tau, mut added) = (if ws.shift > 0.0 { ws.shift / 10.0 } else { tau0 }, 0.0);
+    for tries in 1..=MAX_SHIFTS as usize {
+        (0..n).for_each(|i| ws.solver.add(i, i, tau - added));
+        added = tau;
+        if ws.solver.cholesky() {
+            ws.shift = tau;
+            return Ok(1 + tries);
+        }
+        tau *= 10.0;
+    }
+    Err(SolveError::Singular { dof: None, ratio: None })
 }
 
 /// Sufficient decrease of the Armijo condition E(u + α d) ≤ E(u) + c α E'(0): the usual

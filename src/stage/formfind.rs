@@ -17,13 +17,22 @@ use crate::tsm::{tangent_pattern, Assembly, DofMap};
 #[derive(Clone, Copy, Debug)]
 pub struct SelfEquilibrium {
     pub name: &'static str,
+    /// Newton seeks a minimum of the potential ([`NewtonWorkspace::minimize`]).
+    pub minimize: bool,
 }
 
 impl SelfEquilibrium {
     /// Form-finding with virtual measure-potential elements.
-    pub const FORM_FINDING: SelfEquilibrium = SelfEquilibrium { name: "form-finding" };
-    /// The equilibrium of a model given with real rest lengths.
-    pub const GIVEN: SelfEquilibrium = SelfEquilibrium { name: "equilibrium" };
+    pub const FORM_FINDING: SelfEquilibrium = SelfEquilibrium {
+        name: "form-finding",
+        minimize: true,
+    };
+    /// The equilibrium of a model given with real rest lengths (its Newton path kept as
+    /// it was: these models start at or next to their equilibrium).
+    pub const GIVEN: SelfEquilibrium = SelfEquilibrium {
+        name: "equilibrium",
+        minimize: false,
+    };
 }
 
 /// What an equilibrium solve found, besides the state.
@@ -52,6 +61,7 @@ impl Analysis for SelfEquilibrium {
         let asm = Assembly::new(model, &structure.elements, &dofs, state.positions);
         let mut u = asm.free_coordinates();
         let mut ws = NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_pattern(model, &dofs));
+        ws.minimize = self.minimize;
         let mut problem = StaticEquilibrium {
             asm,
             load: vec![0.0; dofs.len()],
