@@ -11,7 +11,7 @@ use tsim::model::{shape_error, Model};
 use tsim::solve::NewtonSettings;
 use tsim::stage::measure::MeasureSpec;
 use tsim::stage::substitute::balanced_forces;
-use tsim::tsm::{Assembly, DofMap, Elements};
+use tsim::tsm::DofMap;
 
 fn grid(nx: usize, ny: usize) -> Model {
     let spec = GridSpec {
