@@ -299,9 +299,6 @@ impl SparseSolver {
     }
 }
 
-impl SparseSolver {
-}
-
 impl TangentSink for SparseSolver {
     fn add(&mut self, row: usize, col: usize, value: f64) {
         let k = self.slot(row, col);
