@@ -439,7 +439,7 @@ pub enum Cell {
 
 /// The per-case columns of `summary.csv` after `case_id` and the swept axes, with their
 /// units (docs/outputs.md documents each): (name, unit).
-pub const COLUMNS: [(&str, &str); 29] = [
+pub const COLUMNS: [(&str, &str); 31] = [
     ("status", ""),
     ("run", ""),
     ("reason", ""),
@@ -469,6 +469,8 @@ pub const COLUMNS: [(&str, &str); 29] = [
     ("deploy_shape_error", "1"),
     ("deploy_mirror_shape_error", "1"),
     ("deploy_settle_time_s", "s"),
+    ("min_clearance_m", "m"),
+    ("clearance_events", "1"),
 ];
 
 /// The values of [`COLUMNS`] for one case, in that order.
@@ -478,6 +480,7 @@ pub fn cells(o: &CaseOutcome) -> Vec<Cell> {
     let eig = s.and_then(|s| s.eigen.as_ref());
     let free = s.and_then(|s| s.free_vibration.as_ref());
     let dep = s.and_then(|s| s.deployment.as_ref());
+    let clearance = s.and_then(|s| s.clearance.as_ref());
     // A model given with rest lengths solves its equilibrium in place of form-finding.
     let stage = |name: &str| s.and_then(|s| s.stage_seconds.get(name).copied());
     let shaping = stage("formfinding").or_else(|| stage("equilibrium"));
@@ -512,6 +515,8 @@ pub fn cells(o: &CaseOutcome) -> Vec<Cell> {
         f(dep.map(|d| d.shape_error)),
         f(dep.map(|d| d.mirror_shape_error)),
         f(dep.and_then(|d| d.transient.settle_time)),
+        f(clearance.and_then(|c| c.nearest.as_ref()).map(|n| n.clearance)),
+        f(clearance.map(|c| c.event_count as f64)),
     ]
 }
 
