@@ -177,8 +177,9 @@ fn shape(cfg: &CaseConfig, model: &Model, settings: &Settings, recorder: &mut dy
 }
 
 /// The model record (real rest lengths and masses), then form-finding's (or the given
-/// model's equilibrium), with the clearance of its struts. Folding's prescribed directions (reactions too) and its modes
-/// per step are declared here: the outputs fix their layout before streaming starts.
+/// model's equilibrium), with the clearance of its struts. Folding's prescribed directions
+/// (reactions too) and its modes per step are declared here: the outputs fix their layout
+/// before streaming starts.
 fn record_structure(
     recorder: &mut dyn Recorder,
     structure: &Structure,

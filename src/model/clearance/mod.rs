@@ -159,16 +159,15 @@ impl Struts {
         (longest + 2.0 * self.r_max).max(f64::MIN_POSITIVE)
     }
 
-    /// The candidate pairs whose `boxes` (one per strut) overlap, non-adjacent, into
-    /// `ws.candidates`; with all pairs, every non-adjacent pair.
-    fn candidates<'w>(&'w self, x: &[Vector3<f64>], ws: &'w mut Workspace) -> &'w [(u32, u32)] {
+    /// The non-adjacent pairs whose `boxes` (one per strut) overlap, found by `grid` into
+    /// `out`; with all pairs, every non-adjacent pair (the caller tests the boxes).
+    fn candidates<'w>(&'w self, x: &[Vector3<f64>], boxes: &[Aabb], grid: &mut Grid, out: &'w mut Vec<(u32, u32)>) -> &'w [(u32, u32)] {
         if !self.grid {
             return &self.pairs;
         }
-        let cell = self.cell(x);
-        ws.grid.overlapping(&ws.boxes, cell, &mut ws.candidates);
-        ws.candidates.retain(|&(i, j)| !self.adjacent(i, j));
-        &ws.candidates
+        grid.overlapping(boxes, self.cell(x), out);
+        out.retain(|&(i, j)| !self.adjacent(i, j));
+        out
     }
 
     /// The clearance of struts i, j at `x`, with their axes' closest points.
@@ -189,7 +188,8 @@ impl Struts {
                 ws.boxes.push(Aabb::around(&[s.p, s.q], self.radius[k as usize] + 0.5 * d));
             }
         }
-        for &pair in self.candidates(x, ws) {
+        let Workspace { grid, boxes, candidates } = ws;
+        for &pair in self.candidates(x, boxes, grid, candidates) {
             let clearance = self.pair(pair, x).0;
             if clearance <= d {
                 out.push(PairClearance { struts: pair, clearance });

@@ -100,9 +100,10 @@ impl Segment {
         let triple = self.triple(other);
         // |triple| ≤ |r| |d1| |d2|; a relative 1e-10 is far above the round-off of the
         // products (~1e-15) and far below any real separation (1e-10 of a 7 m strut is
-        // 0.7 nm).
-        let scale = (r.norm() + d1.norm() + d2.norm()) * d1.norm() * d2.norm();
-        if triple.abs() <= 1e-10 * scale {
+        // 0.7 nm). Compared squared, with (|r| + |d1| + |d2|)² ≤ 3 (|r|² + |d1|² + |d2|²):
+        // no square root (this runs for every pair at every step).
+        let (r2, a2, b2) = (r.norm_squared(), d1.norm_squared(), d2.norm_squared());
+        if triple * triple <= 1e-20 * 3.0 * (r2 + a2 + b2) * a2 * b2 {
             0
         } else if triple > 0.0 {
             1

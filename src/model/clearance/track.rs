@@ -9,7 +9,8 @@
 //!   between the steps; found by bisection) the axes meet inside both segments. Both
 //!   steps may be clear: two struts can pass through each other within one step. A pair
 //!   coplanar at either step (orientation 0, e.g. a flat folded state) has no side to swap
-//!   from; if its axes cross there, it is a touch. Two flips within one step, and parallel
+//!   from; if its axes cross there, it is a touch (a swap of sides *through* a coplanar
+//!   state is therefore seen as that touch only). Two flips within one step, and parallel
 //!   axes sliding through each other, are not seen: the check samples the steps it is given.
 
 use super::{Aabb, Nearest, PairClearance, Segment, Struts, Workspace};
@@ -58,6 +59,9 @@ pub struct Tracker {
     /// Pairs touching at the previous step and at this one, sorted by strut indices.
     touching: Vec<PairClearance>,
     touching_now: Vec<PairClearance>,
+    /// With all pairs, each pair's side (orientation) at the previous step, in the order of
+    /// `Struts::pairs`: computed once per step, not twice.
+    sides: Vec<i8>,
     /// Events since the last [`Tracker::clear_events`].
     events: Vec<Event>,
     /// The previous step's smallest clearance: where the grid's search starts.
@@ -83,6 +87,7 @@ impl Tracker {
             previous_time: 0.0,
             touching: Vec::with_capacity(room),
             touching_now: Vec::with_capacity(room),
+            sides: Vec::with_capacity(struts.pairs.len()),
             events: Vec::with_capacity(2 * room),
             last: 0.0,
             struts,
@@ -95,9 +100,7 @@ impl Tracker {
         let nearest = self.struts.nearest(x, 1.25 * self.last, &mut self.ws, &mut self.near);
         self.last = nearest.map_or(0.0, |n| n.clearance);
         self.touches(step, time);
-        if !self.previous.is_empty() {
-            self.pass_throughs(x, step, time);
-        }
+        self.pass_throughs(x, step, time);
         self.previous.clear();
         self.previous.extend_from_slice(x);
         self.previous_time = time;
@@ -133,7 +136,8 @@ impl Tracker {
         std::mem::swap(&mut self.touching, &mut self.touching_now);
     }
 
-    /// Pairs whose axes crossed between the previous step and `x`.
+    /// Pairs whose axes crossed between the previous step and `x` (at the first step, only
+    /// the sides are kept).
     fn pass_throughs(&mut self, x: &[Vector3<f64>], step: usize, time: f64) {
         let Tracker {
             struts,
@@ -141,20 +145,35 @@ impl Tracker {
             previous,
             previous_time,
             events,
+            sides,
             ..
         } = self;
-        if struts.grid {
-            // Axes that cross meet inside the boxes swept by both between the steps.
-            ws.boxes.clear();
-            for k in 0..struts.len() as u32 {
-                let (a, b) = (struts.segment(k, previous), struts.segment(k, x));
-                ws.boxes.push(Aabb::around(&[a.p, a.q, b.p, b.q], 0.0));
-            }
+        if previous.is_empty() {
+            let side = |&(i, j): &(u32, u32)| struts.segment(i, x).orientation(&struts.segment(j, x));
+            sides.clear();
+            sides.extend(struts.pairs.iter().map(side));
+            return;
         }
-        for &pair in struts.candidates(x, ws) {
-            let before = (struts.segment(pair.0, previous), struts.segment(pair.1, previous));
+        // Axes that cross meet inside the boxes swept by both between the steps: a pair whose
+        // boxes are apart cannot have crossed (the grid finds only overlapping ones).
+        let Workspace { grid, boxes, candidates } = ws;
+        boxes.clear();
+        for k in 0..struts.len() as u32 {
+            let (a, b) = (struts.segment(k, previous), struts.segment(k, x));
+            boxes.push(Aabb::around(&[a.p, a.q, b.p, b.q], 0.0));
+        }
+        for (k, &pair) in struts.candidates(x, boxes, grid, candidates).iter().enumerate() {
             let after = (struts.segment(pair.0, x), struts.segment(pair.1, x));
-            if before.0.orientation(&before.1) * after.0.orientation(&after.1) >= 0 {
+            let side = after.0.orientation(&after.1);
+            let before = (struts.segment(pair.0, previous), struts.segment(pair.1, previous));
+            // All pairs: pair k's side kept from the previous step; the grid's candidates
+            // change from step to step, so it compares both steps afresh.
+            let was = if struts.grid {
+                before.0.orientation(&before.1)
+            } else {
+                std::mem::replace(&mut sides[k], side)
+            };
+            if was * side >= 0 || !boxes[pair.0 as usize].overlaps(&boxes[pair.1 as usize]) {
                 continue;
             }
             if let Some(tau) = crossing(before, after) {
