@@ -6,7 +6,9 @@
 //! - free vibration and deployment: steps 0..=301, time = 1e-3 s × step; folding: steps
 //!   0..=21, fraction = step / 21;
 //! - at step s: position = initial + 1e-3 s (every component), velocity = s, member length =
-//!   1 + s, energies kinetic 0.5 s, strain 100 − 0.5 s, damping 0.01 s, external 0.02 s.
+//!   1 + s, energies kinetic 0.5 s, strain 100 − 0.5 s, damping 0.01 s, external 0.02 s,
+//!   smallest clearance 0.5 − 1e-3 s [m] between members 0 and 1, no clearance event;
+//!   form-finding: clearance not followed.
 //!
 //! Usage: `write_sample OUTDIR [--every N] [--slow]`. `--every N` records, as the stages do
 //! for `outputs.every`, the steps with `step % N == 0` and the last. `--slow` runs 3000
@@ -20,7 +22,9 @@ use tsim::model::MemberKind;
 use tsim::output::h5::Hdf5Recorder;
 use tsim::output::replay::McapRecorder;
 use tsim::output::Background;
-use tsim::record::{Constraints, EigenRecord, Energy, FormFindRecord, Frame, ModelRecord, Outcome, Recorder, Stage};
+use tsim::record::{
+    Constraints, EigenRecord, Energy, FormFindRecord, Frame, FrameClearance, ModelRecord, Nearest, Outcome, Recorder, Stage,
+};
 
 type Result<T> = std::result::Result<T, Box<dyn std::error::Error + Send + Sync>>;
 
@@ -70,6 +74,7 @@ fn main() -> Result<()> {
             residuals: &[1.0, 1e-3, 1e-9],
             positions: &x0,
             forces: &forces,
+            clearance: None,
         })
     })?;
     let shapes = vec![vec![Vector3::new(0.0, 0.0, 1.0); n]; 4];
@@ -127,6 +132,15 @@ fn main() -> Result<()> {
                 reactions: &reactions,
                 equilibrium_error: 0.0,
                 modes: None,
+                clearance: Some(FrameClearance {
+                    nearest: Some(Nearest {
+                        clearance: 0.5 - 1e-3 * s,
+                        members: [0, 1],
+                        points: [x0[0], x0[1]],
+                        radius: 0.05,
+                    }),
+                    events: &[],
+                }),
             };
             each(&mut |r| r.frame(&frame))?;
         }

@@ -4,8 +4,11 @@
 
 use crate::config::{CaseConfig, StartFrom, TransientSpec};
 use crate::error::{Error, Result};
+use crate::model::clearance::Tracker;
 use crate::model::{shape_error, Model};
-use crate::record::{Constraints, FormFindRecord, ModelRecord, Recorder, RigidityRecord, Stage};
+use crate::record::{
+    ClearanceLog, ClearanceSummary, Constraints, FormFindRecord, FrameClearance, ModelRecord, Recorder, RigidityRecord, Stage,
+};
 use crate::rigidity::{self, Rigidity, RigidityError};
 use crate::stage::eigen::EigenSummary;
 use crate::stage::fold::{FoldSummary, Folding};
@@ -41,6 +44,10 @@ pub struct CaseSummary {
     /// `free_vibration`, `folding`, `deployment`).
     #[serde(default)]
     pub stage_seconds: std::collections::BTreeMap<String, f64>,
+    /// The smallest strut clearance over every recorded step and the touch and
+    /// pass-through events (absent with `outputs.clearance: false`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clearance: Option<ClearanceSummary>,
 }
 
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
@@ -58,6 +65,14 @@ pub struct DeploymentSummary {
 
 /// Runs every configured stage of one case.
 pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSummary> {
+    let mut log = ClearanceLog::new(recorder);
+    let mut summary = run_stages(cfg, &mut log)?;
+    summary.clearance = log.summary();
+    Ok(summary)
+}
+
+/// [`run_case`] without the clearance summary, which its recorder keeps.
+fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSummary> {
     let model = cfg.model.build()?;
     let settings = cfg.settings();
     let mut summary = CaseSummary::default();
@@ -69,6 +84,9 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     };
     // 1–2. Form-finding and substitution by real materials (or the given rest lengths).
     let (mut structure, unloaded, found) = shape(cfg, &model, &settings, recorder)?;
+    if !cfg.outputs.clearance {
+        structure.struts = None;
+    }
     summary.substitution = SubstitutionSummary::new(&structure, &unloaded)?;
     summary.substitution.require_stable(cfg.substitution.allow_unstable)?;
     let folding = cfg.folding(&model)?;
@@ -187,8 +205,9 @@ fn shape(cfg: &CaseConfig, model: &Model, settings: &Settings, recorder: &mut dy
 }
 
 /// The model record (real rest lengths and masses), then form-finding's (or the given
-/// model's equilibrium). Folding's prescribed directions (reactions too) and its modes
-/// per step are declared here: the outputs fix their layout before streaming starts.
+/// model's equilibrium), with the clearance of its struts. Folding's prescribed directions
+/// (reactions too) and its modes per step are declared here: the outputs fix their layout
+/// before streaming starts.
 fn record_structure(
     recorder: &mut dyn Recorder,
     structure: &Structure,
@@ -207,11 +226,17 @@ fn record_structure(
         path_modes: folding.map_or(0, |f| f.modes),
     };
     recorder.model(&model).map_err(|source| Error::Record { stage: "model", source })?;
+    let mut tracker = structure.struts.clone().map(Tracker::new);
+    let nearest = tracker.as_mut().map(|t| t.observe(&shape.positions, 0, 0.0));
     let record = FormFindRecord {
         stage: found.stage,
         residuals: &found.summary.residuals,
         positions: &shape.positions,
         forces: &found.forces,
+        clearance: tracker.as_ref().zip(nearest).map(|(t, nearest)| FrameClearance {
+            nearest,
+            events: t.events(),
+        }),
     };
     recorder.formfinding(&record).map_err(|source| Error::Record {
         stage: found.stage.name(),

@@ -4,9 +4,11 @@
 //! and returns the converged state it ends in.
 
 use crate::dynamics::Rayleigh;
+use crate::model::clearance::Struts;
 use crate::model::Model;
 use crate::tsm::{DofMap, Elements};
 use nalgebra::Vector3;
+use std::sync::Arc;
 
 /// A structure as every stage sees it.
 #[derive(Clone, Debug)]
@@ -26,6 +28,8 @@ pub struct Structure {
     /// Nodal loads that stay on once the static stage has applied them [N per node];
     /// empty for none.
     pub dead_load: Vec<Vector3<f64>>,
+    /// The struts and their radii whose clearance the stages follow (`None`: not followed).
+    pub struts: Option<Arc<Struts>>,
 }
 
 impl Structure {
@@ -38,6 +42,7 @@ impl Structure {
             damping: Rayleigh::default(),
             gravity: Vector3::zeros(),
             dead_load: Vec::new(),
+            struts: None,
         }
     }
 

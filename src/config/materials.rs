@@ -58,6 +58,12 @@ pub struct MaterialSpec {
 }
 
 impl MaterialSpec {
+    /// Radius of a solid round bar of this cross-section, √(A/π) [m] (a material knows
+    /// its area only; a tube of that area would be wider).
+    pub fn radius(&self) -> f64 {
+        (self.area / std::f64::consts::PI).sqrt()
+    }
+
     pub fn law(&self) -> Arc<dyn ForceLaw> {
         match &self.law {
             LawSpec::Elastic {

@@ -38,10 +38,11 @@ impl CaseConfig {
         };
         let find = |name: &String| lib.get(name).ok_or_else(|| stage_error(format!("unknown material `{name}`")));
         let factor = self.masses.factor();
-        // One (law, linear density) per distinct material; members index into them, so a
-        // large model shares its laws.
-        let by_kind = [find(&self.substitution.strut)?, find(&self.substitution.cable)?].map(|m| (m.law(), m.density * factor * m.area));
-        let mut table: Vec<(Arc<dyn ForceLaw>, f64)> = by_kind.to_vec();
+        // One (law, linear density, radius) per distinct material; members index into them,
+        // so a large model shares its laws.
+        let by_kind =
+            [find(&self.substitution.strut)?, find(&self.substitution.cable)?].map(|m| (m.law(), m.density * factor * m.area, m.radius()));
+        let mut table: Vec<(Arc<dyn ForceLaw>, f64, f64)> = by_kind.to_vec();
         let mut chosen: Vec<usize> = model.members.iter().map(|m| usize::from(m.kind == MemberKind::Cable)).collect();
         for (k, a) in self.substitution.assign.iter().enumerate() {
             let mut spec = match (&a.material, &a.define) {
@@ -57,16 +58,16 @@ impl CaseConfig {
                 spec.area = area;
             }
             let density = if a.massless { 0.0 } else { spec.density * factor * spec.area };
-            table.push((spec.law(), density));
+            table.push((spec.law(), density, spec.radius()));
             for m in model.member_set(&a.members, &a.groups)? {
                 chosen[m] = table.len() - 1;
             }
         }
-        let (laws, linear_density) = chosen.iter().map(|&i| table[i].clone()).unzip();
         Ok(Materials {
-            laws,
-            linear_density,
+            laws: chosen.iter().map(|&i| table[i].0.clone()).collect(),
+            linear_density: chosen.iter().map(|&i| table[i].1).collect(),
             point_masses: self.point_masses(model)?,
+            radius: chosen.iter().map(|&i| table[i].2).collect(),
         })
     }
 

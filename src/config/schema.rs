@@ -493,6 +493,10 @@ pub struct OutputSpec {
     /// is noted in `outcome.json` and does not fail the case.
     #[serde(default)]
     pub figures: bool,
+    /// Follow the struts' clearance at every step: the nearest pair per recorded step, and
+    /// touches and pass-throughs (result.h5, replay.mcap, summary).
+    #[serde(default = "yes")]
+    pub clearance: bool,
 }
 
 fn one_usize() -> usize {
@@ -509,6 +513,7 @@ impl Default for OutputSpec {
             hdf5: true,
             mcap: true,
             figures: false,
+            clearance: true,
         }
     }
 }

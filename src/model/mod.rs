@@ -3,6 +3,7 @@
 //! [`crate::tsm::Elements`] so that one model serves form-finding and every real-material
 //! stage of a sweep.
 
+pub mod clearance;
 pub mod generate;
 pub mod grid;
 pub mod names;

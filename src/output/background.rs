@@ -18,8 +18,8 @@
 //! direct recorder would.
 
 use crate::record::{
-    Constraints, EigenRecord, Energy, FormFindRecord, Frame, FrameModes, ModelRecord, Outcome, RecordResult, Recorder, RigidityRecord,
-    Stage,
+    ClearanceEvent, Constraints, EigenRecord, Energy, FormFindRecord, Frame, FrameClearance, FrameModes, ModelRecord, Nearest, Outcome,
+    RecordResult, Recorder, RigidityRecord, Stage,
 };
 use nalgebra::Vector3;
 use std::sync::mpsc::{channel, sync_channel, Receiver, Sender, SyncSender};
@@ -277,6 +277,8 @@ pub(super) struct OwnedFrame {
     equilibrium_error: f64,
     /// (ω², lowest mode) when the frame has modes.
     modes: Option<(Vec<f64>, Vec<Vector3<f64>>)>,
+    /// (nearest pair, events) when the frame has clearance.
+    clearance: Option<(Option<Nearest>, Vec<ClearanceEvent>)>,
 }
 
 impl OwnedFrame {
@@ -302,6 +304,14 @@ impl OwnedFrame {
                 refill(lowest, m.lowest);
             }
             None => self.modes = None,
+        }
+        match f.clearance {
+            Some(c) => {
+                let (nearest, events) = self.clearance.get_or_insert_with(Default::default);
+                *nearest = c.nearest;
+                refill(events, c.events);
+            }
+            None => self.clearance = None,
         }
     }
 
@@ -330,6 +340,10 @@ impl OwnedFrame {
             reactions: &self.reactions,
             equilibrium_error: self.equilibrium_error,
             modes: self.modes.as_ref().map(|(omega2, lowest)| FrameModes { omega2, lowest }),
+            clearance: self
+                .clearance
+                .as_ref()
+                .map(|(nearest, events)| FrameClearance { nearest: *nearest, events }),
         }
     }
 }

@@ -21,7 +21,8 @@
 use super::chunk::ChunkEncoder;
 use crate::model::AXES;
 use crate::record::{
-    Constraints, EigenRecord, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Rigidity, RigidityRecord, Stage,
+    ClearanceEvent, Constraints, EigenRecord, EventKind, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Rigidity,
+    RigidityRecord, Stage,
 };
 use hdf5::types::{FixedUnicode, VarLenUnicode};
 use hdf5::{Dataset, File, Group, H5Type, Location};
@@ -62,6 +63,12 @@ extern "C" {
     fn H5DSset_scale(dsid: hid_t, dimname: *const c_char) -> herr_t;
     fn H5DSattach_scale(did: hid_t, dsid: hid_t, idx: c_uint) -> herr_t;
 }
+
+/// Rows per chunk of a clearance event table (events are rare; a chunk is 0.5–1 KiB).
+const EVENT_CHUNK: usize = 64;
+const PAIR: &str = "member of a strut pair: 0 = the lower member index, 1 = the higher";
+const MIN_CLEARANCE: &str = "smallest surface clearance of non-adjacent struts (axis distance less both radii; <= 0: touching)";
+const MIN_CLEARANCE_PAIR: &str = "0-based member indices of the struts with the smallest clearance (NaN: no such pair)";
 
 /// Streams a case to HDF5.
 ///
@@ -251,6 +258,14 @@ impl Recorder for Hdf5Recorder {
             "N",
             "equilibrium member force (tension > 0)",
         )?;
+        if let Some(c) = record.clearance {
+            let nearest = c
+                .nearest
+                .map_or((f64::NAN, [f64::NAN; 2]), |n| (n.clearance, n.members.map(|m| m as f64)));
+            g.coord("pair", &[0i64, 1], "1", PAIR)?;
+            g.var("min_clearance", &[], &[nearest.0], "m", MIN_CLEARANCE)?;
+            g.var("min_clearance_pair", &["pair"], &nearest.1, "1", MIN_CLEARANCE_PAIR)?;
+        }
         Ok(open.file.flush()?)
     }
 
@@ -365,6 +380,7 @@ struct Series {
     folding: bool,
     /// Lowest modes recorded per step (folding with `folding.eigen`; 0: none).
     modes: usize,
+    events: EventTable,
     written: usize,
     buffered: usize,
     chunk: usize,
@@ -374,7 +390,8 @@ struct Series {
 impl Series {
     /// Column order, used by [`Series::push`]: time, [fraction], position, [velocity],
     /// member_force, member_length, kinetic, strain, damping, external, applied_load,
-    /// reaction, equilibrium_error. Folding, a static stage, has `fraction` and no
+    /// reaction, equilibrium_error, [mode_omega2, lowest_mode], min_clearance,
+    /// min_clearance_pair; the clearance events in a table of their own. Folding, a static stage, has `fraction` and no
     /// `velocity`. The `support` dimension (the stage's constrained directions, from
     /// `record`) has the coordinate `support` (labels `<node>.<axis>`) and the auxiliary
     /// coordinates `support_node`, `support_axis` and `support_kind` (`support` or
@@ -508,12 +525,15 @@ impl Series {
             }
             columns.extend([omega2, lowest]);
         }
+        let (clearance, events) = clearance_columns(&mut g, folding, chunk)?;
+        columns.extend(clearance);
         let columns = columns.into_iter().map(|ds| (ds, Vec::new())).collect();
         Ok(Series {
             columns,
             constraints,
             folding,
             modes,
+            events,
             written: 0,
             buffered: 0,
             chunk,
@@ -564,6 +584,13 @@ impl Series {
                 .ok_or_else(|| format!("HDF5: frame {} lacks its {} lowest modes", f.step, self.modes))?;
             next().extend_from_slice(m.omega2);
             extend_vectors(next(), m.lowest);
+        }
+        // NaN when not followed or without a pair: the layout is fixed before streaming.
+        let nearest = f.clearance.and_then(|c| c.nearest);
+        next().push(nearest.map_or(f64::NAN, |n| n.clearance));
+        next().extend(nearest.map_or([f64::NAN; 2], |n| n.members.map(|m| m as f64)));
+        if let Some(c) = f.clearance {
+            self.events.append(c.events)?;
         }
         self.buffered += 1;
         let full = self.buffered == self.chunk;
@@ -661,6 +688,142 @@ fn write_rigidity(mut g: Dims, r: &Rigidity, node_ids: &[String], member_ids: &[
         "N m-1",
         "prestress stiffness of the mechanism (eigenvalue of the geometric stiffness on the mechanisms)",
     )
+}
+
+/// The clearance variables of a time-stepping group: `min_clearance (time)` and
+/// `min_clearance_pair (time, pair)`, streamed, and the event table.
+fn clearance_columns(g: &mut Dims, folding: bool, chunk: usize) -> Result<([Dataset; 2], EventTable), Error> {
+    g.coord("pair", &[0i64, 1], "1", PAIR)?;
+    let min = g.streamed("min_clearance", &[], chunk, "m", MIN_CLEARANCE)?;
+    let pair = g.streamed("min_clearance_pair", &["pair"], chunk, "1", MIN_CLEARANCE_PAIR)?;
+    if folding {
+        for ds in [&min, &pair] {
+            str_attr(ds, "coordinates", "fraction")?;
+        }
+    }
+    Ok(([min, pair], EventTable::create(g, folding)?))
+}
+
+/// The clearance events of one stage, a table along the dimension `clearance_event`:
+/// `clearance_event_step`, `_time`, `_pair (clearance_event, pair)`, `_kind` (0 touch,
+/// 1 pass_through, as CF flags) and `_clearance`. Events are rare: each frame's are
+/// written when it arrives, not buffered.
+struct EventTable {
+    index: Dataset,
+    step: Dataset,
+    time: Dataset,
+    pair: Dataset,
+    kind: Dataset,
+    clearance: Dataset,
+    rows: usize,
+}
+
+impl EventTable {
+    fn create(g: &mut Dims, folding: bool) -> Result<Self, Error> {
+        let index = extendable::<i64>(&g.group, "clearance_event", 1)?;
+        describe(&index, "1", "clearance event number")?;
+        g.scale("clearance_event", index.clone())?;
+        let column = |ds: Dataset, dims: &[&str], units: &str, long_name: &str| -> Result<Dataset, Error> {
+            describe(&ds, units, long_name)?;
+            g.attach(&ds, dims)?;
+            Ok(ds)
+        };
+        let event = ["clearance_event"];
+        let (time_units, time_name) = if folding {
+            (
+                "1",
+                "applied fraction at the event (a pass-through: interpolated between the steps)",
+            )
+        } else {
+            (
+                "s",
+                "time of the event since the stage began (a pass-through: the interpolated moment of crossing)",
+            )
+        };
+        let step = column(
+            extendable::<i64>(&g.group, "clearance_event_step", 1)?,
+            &event,
+            "1",
+            "step at which the event is seen",
+        )?;
+        let time = column(
+            extendable::<f64>(&g.group, "clearance_event_time", 1)?,
+            &event,
+            time_units,
+            time_name,
+        )?;
+        let pair = column(
+            extendable::<i64>(&g.group, "clearance_event_pair", 2)?,
+            &["clearance_event", "pair"],
+            "1",
+            "0-based member indices of the two struts",
+        )?;
+        let kind = column(extendable::<i8>(&g.group, "clearance_event_kind", 1)?, &event, "1", "kind of event")?;
+        kind.new_attr_builder().with_data(&[0i8, 1][..]).create("flag_values")?;
+        str_attr(&kind, "flag_meanings", "touch pass_through")?;
+        let clearance = column(
+            extendable::<f64>(&g.group, "clearance_event_clearance", 1)?,
+            &event,
+            "m",
+            "clearance of the pair at the step of the event",
+        )?;
+        Ok(EventTable {
+            index,
+            step,
+            time,
+            pair,
+            kind,
+            clearance,
+            rows: 0,
+        })
+    }
+
+    fn append(&mut self, events: &[ClearanceEvent]) -> Result<(), Error> {
+        if events.is_empty() {
+            return Ok(());
+        }
+        let (start, end) = (self.rows, self.rows + events.len());
+        let index: Vec<i64> = (start as i64..end as i64).collect();
+        append_rows(&self.index, start, &index)?;
+        append_rows(&self.step, start, &events.iter().map(|e| e.step as i64).collect::<Vec<_>>())?;
+        append_rows(&self.time, start, &events.iter().map(|e| e.time).collect::<Vec<_>>())?;
+        let kind = |e: &ClearanceEvent| match e.kind {
+            EventKind::Touch => 0i8,
+            EventKind::PassThrough => 1,
+        };
+        append_rows(&self.kind, start, &events.iter().map(kind).collect::<Vec<_>>())?;
+        append_rows(&self.clearance, start, &events.iter().map(|e| e.clearance).collect::<Vec<_>>())?;
+        self.pair.resize(vec![end, 2])?;
+        for side in 0..2 {
+            let members: Vec<i64> = events.iter().map(|e| e.members[side] as i64).collect();
+            self.pair.write_slice(&members, (start..end, side))?;
+        }
+        self.rows = end;
+        Ok(())
+    }
+}
+
+/// An empty dataset growing along its first axis, `width` values per row (1: a 1-D one).
+fn extendable<T: H5Type>(group: &Group, name: &str, width: usize) -> Result<Dataset, Error> {
+    let builder = group.new_dataset::<T>();
+    let ds = if width == 1 {
+        builder
+            .chunk(vec![EVENT_CHUNK])
+            .shape(vec![hdf5::Extent::resizable(0)])
+            .create(name)?
+    } else {
+        builder
+            .chunk(vec![EVENT_CHUNK, width])
+            .shape(vec![hdf5::Extent::resizable(0), width.into()])
+            .create(name)?
+    };
+    Ok(ds)
+}
+
+/// Appends `values` to the 1-D dataset `ds` of `start` rows.
+fn append_rows<T: H5Type>(ds: &Dataset, start: usize, values: &[T]) -> Result<(), Error> {
+    ds.resize(vec![start + values.len()])?;
+    Ok(ds.write_slice(values, start..start + values.len())?)
 }
 
 /// Creates datasets in one group and attaches them to the group's dimension scales.
@@ -834,7 +997,7 @@ pub(super) mod tests {
     use super::*;
     use crate::model::generate::TowerSpec;
     use crate::model::Model;
-    use crate::record::{Constraints, EigenRecord, Energy};
+    use crate::record::{Constraints, EigenRecord, Energy, Nearest};
 
     pub(in crate::output) fn temp_path(name: &str) -> std::path::PathBuf {
         let dir = std::env::temp_dir().join(format!("tsim-record-{}", std::process::id()));
@@ -869,6 +1032,7 @@ pub(super) mod tests {
             residuals: &[1.0, 1e-3, 1e-9],
             positions: &x0,
             forces: &forces,
+            clearance: None,
         })?;
         // The analysis itself is tested in crate::rigidity; here it is only written.
         let analysis = crate::rigidity::analyse(model, &x0, None).map_err(|e| e.to_string())?;
@@ -902,6 +1066,21 @@ pub(super) mod tests {
                 };
                 let lengths = vec![1.0 + s; m];
                 let velocities = (stage != Stage::Folding).then_some(velocities.as_slice());
+                // Struts 0 and 1 approach by 0.01 m a step; a touch is reported at the last.
+                let touch = ClearanceEvent {
+                    kind: EventKind::Touch,
+                    members: [0, 1],
+                    step,
+                    time,
+                    clearance: -0.01 * s,
+                };
+                let events = if step == steps { vec![touch] } else { vec![] };
+                let nearest = Nearest {
+                    clearance: -0.01 * s,
+                    members: [0, 1],
+                    points: [Vector3::zeros(); 2],
+                    radius: 0.05,
+                };
                 rec.frame(&Frame {
                     step,
                     time,
@@ -914,6 +1093,10 @@ pub(super) mod tests {
                     reactions: &(0..constraints.len()).map(|k| k as f64 + s).collect::<Vec<_>>(),
                     equilibrium_error: 1e-12 * s,
                     modes: None,
+                    clearance: Some(crate::record::FrameClearance {
+                        nearest: Some(nearest),
+                        events: &events,
+                    }),
                 })?;
             }
             rec.end_stage(stage)?;
@@ -1025,6 +1208,19 @@ pub(super) mod tests {
                     .unwrap() as usize
             ]
         );
+        let read = |name: &str| file.dataset(name).unwrap().read_raw::<f64>().unwrap();
+        assert_eq!(read("deployment/min_clearance"), [0.0, 3.0, 6.0, 9.0, 10.0].map(|s| -0.01 * s));
+        assert_eq!(read("folding/min_clearance_pair"), [0.0, 1.0].repeat(5));
+        assert_eq!(read("folding/clearance_event_time"), [1.0]);
+        assert_eq!(read("deployment/clearance_event_clearance"), [-0.1]);
+        let ints = |name: &str| file.dataset(name).unwrap().read_raw::<i64>().unwrap();
+        assert_eq!(ints("deployment/clearance_event_step"), [10]);
+        assert_eq!(ints("deployment/clearance_event_pair"), [0, 1]);
+        assert_eq!(
+            file.dataset("deployment/clearance_event_kind").unwrap().read_raw::<i8>().unwrap(),
+            [0]
+        );
+        assert!(file.dataset("formfinding/min_clearance").is_err(), "not followed there");
         for group in [
             "model",
             "formfinding",

@@ -6,7 +6,10 @@
 //!   struts and cables as `LINE_LIST` primitives coloured by force (tension grey-red to full
 //!   red, compression grey-blue to full blue, each scale topped by the step's largest force
 //!   of its sign; slack grey), a sphere at every free node, a cube at every supported one, and a
-//!   legend text with the scales' maxima.
+//!   legend text with the scales' maxima. When the closest pair of non-adjacent struts is
+//!   within [`NEAR_RADII`] times the larger radius, its struts are drawn again twice as
+//!   thick in magenta with the link between their closest points, and the legend names
+//!   them with their clearance.
 //! - `/tsim/energy` (`energy.Energy`): kinetic, strain, damping, external and total energy.
 //! - `/tsim/members` (`memberforces.MemberForces`): every member's id and force; in a Plot
 //!   panel, `/tsim/members.members[:]{id=="strut0_0"}.force`.
@@ -34,8 +37,10 @@
 //! the previous one is moved 1 ns past it.
 
 use crate::model::{MemberKind, Model};
-use crate::record::{Energy, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Stage};
-use foxglove::messages::{line_primitive, Color, Pose, Quaternion, SceneEntity, SceneUpdate, TextPrimitive, Timestamp};
+use crate::record::{Energy, FormFindRecord, Frame, ModelRecord, Nearest, Outcome, RecordResult, Recorder, Stage};
+use foxglove::messages::{
+    line_primitive, Color, LinePrimitive, Point3, Pose, Quaternion, SceneEntity, SceneUpdate, TextPrimitive, Timestamp,
+};
 use foxglove::Encode;
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
@@ -61,6 +66,16 @@ const LEVELS: usize = 4;
 const NODE_SIZE: f64 = 0.05;
 /// Support cube edge as a multiple of the node sphere diameter.
 const SUPPORT_SIZE: f64 = 1.6;
+/// The closest strut pair is highlighted when its clearance is below this many times the
+/// larger of the two radii: about to touch, on the scale of the struts themselves.
+pub const NEAR_RADII: f64 = 2.0;
+/// Highlighted struts: a magenta apart from the force scales, node and support colours.
+const MAGENTA: Color = Color {
+    r: 0.85,
+    g: 0.0,
+    b: 0.75,
+    a: 1.0,
+};
 /// Legend font height [px].
 const LEGEND_FONT: f64 = 14.0;
 const RED: Color = Color {
@@ -362,6 +377,9 @@ pub struct McapRecorder {
     clock: Clock,
     /// Ends and kind of each member.
     members: Vec<([usize; 2], MemberKind)>,
+    member_ids: Vec<String>,
+    /// The closest strut pair of the state being logged, when the frame has one.
+    nearest: Option<Nearest>,
     /// The `/tsim/members` message's member records, encoded once.
     member_records: MemberRecords,
     /// The end nodes of the scene's lines, one list per (kind, state), reused between steps.
@@ -422,6 +440,8 @@ impl McapRecorder {
             channels,
             clock: Clock::default(),
             members: Vec::new(),
+            member_ids: Vec::new(),
+            nearest: None,
             member_records: MemberRecords::default(),
             buckets: vec![Vec::new(); 2 * (1 + 2 * LEVELS)],
             lines: Vec::new(),
@@ -520,8 +540,8 @@ impl McapRecorder {
 
     /// The scene entity's head (timestamp, frame, id) and its legend; the members' end
     /// nodes sorted into `self.buckets` for [`encode_lines`]. Members are coloured by force
-    /// on two scales, each topped by the step's largest force of its sign: tension pale to full red, compression pale to full blue,
-    /// in [`LEVELS`] shades; slack members (|N| at most [`SLACK_FRACTION`] of the largest,
+    /// on two scales, each topped by the step's largest force of its sign: tension grey-red to
+    /// full red, compression grey-blue to full blue, in [`LEVELS`] shades; slack members (|N| at most [`SLACK_FRACTION`] of the largest,
     /// or a cable in compression) grey. One `LINE_LIST` per (kind, colour) present: half the
     /// size of per-vertex colours.
     fn scene(&mut self, stage: Stage, step: usize, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) -> (SceneEntity, SceneEntity) {
@@ -543,15 +563,20 @@ impl McapRecorder {
             let bucket = states * usize::from(*kind == MemberKind::Cable) + state;
             self.buckets[bucket].extend(ends);
         }
+        let close = self.nearest.filter(|n| n.clearance < NEAR_RADII * n.radius);
         let at = *self.legend_at.get_or_insert_with(|| legend_position(positions, self.node_size));
         let scale = |max: f64| if max > 0.0 { format!("max {} N", sig3(max)) } else { "none".into() };
-        let text = format!(
+        let mut text = format!(
             "{} step {step}\ntension: red, {}\ncompression: blue, {}\nslack: grey; shade = |N| / max in {LEVELS} steps\n{}",
             stage.name(),
             scale(tension),
             scale(compression),
             self.legend_key,
         );
+        if let Some(n) = close {
+            let [a, b] = n.members.map(|m| self.member_ids[m].as_str());
+            text.push_str(&format!("\nclosest struts {a}, {b}: clearance {} m (magenta)", sig3(n.clearance)));
+        }
         let legend = TextPrimitive {
             pose: Some(Pose {
                 position: Some(foxglove::messages::Vector3 { x: at.x, y: at.y, z: at.z }),
@@ -573,17 +598,36 @@ impl McapRecorder {
             id: "tensegrity".into(),
             ..Default::default()
         };
+        // The highlight goes with the legend, after the hand-encoded lines: a repeated field
+        // may continue anywhere in the message.
         let tail = SceneEntity {
+            lines: close.map(|n| self.highlight(&n, positions)).into_iter().collect(),
             texts: vec![legend],
             ..Default::default()
         };
         (head, tail)
     }
 
+    /// The closest pair's two struts and the link between their closest points, as one
+    /// thick magenta `LINE_LIST`.
+    fn highlight(&self, n: &Nearest, positions: &[Vector3<f64>]) -> LinePrimitive {
+        let point = |p: &Vector3<f64>| Point3 { x: p.x, y: p.y, z: p.z };
+        let ends = n.members.iter().flat_map(|&m| self.members[m].0).map(|k| point(&positions[k]));
+        LinePrimitive {
+            r#type: line_primitive::Type::LineList as i32,
+            thickness: 2.0 * STRUT_WIDTH,
+            scale_invariant: true,
+            points: ends.chain(n.points.iter().map(point)).collect(),
+            color: Some(MAGENTA),
+            ..Default::default()
+        }
+    }
+
     fn record_frame(&mut self, frame: &Frame) -> Result<(), Error> {
         let stage = self.stage.ok_or("MCAP: frame outside a time-stepping stage")?;
         let t = self.clock.frame_time(frame);
         let ns = self.clock.step_stamp(t);
+        self.nearest = frame.clearance.and_then(|c| c.nearest);
         self.log_state(stage, frame.step, ns, frame.positions, frame.forces, Some(frame.energy))
     }
 }
@@ -709,6 +753,7 @@ fn nanos(t: f64) -> u64 {
 impl Recorder for McapRecorder {
     fn model(&mut self, record: &ModelRecord) -> RecordResult {
         self.members = record.model.members.iter().map(|m| (m.nodes, m.kind)).collect();
+        self.member_ids = record.model.members.iter().map(|m| m.id.clone()).collect();
         self.member_records = MemberRecords::new(record.model.members.iter().map(|m| m.id.as_str()));
         let supports: Vec<usize> = record
             .model
@@ -733,6 +778,7 @@ impl Recorder for McapRecorder {
         let t = self.clock.static_step();
         self.log_stage(record.stage, t)?;
         let ns = self.clock.step_stamp(t);
+        self.nearest = record.clearance.and_then(|c| c.nearest);
         self.log_state(record.stage, 0, ns, record.positions, record.forces, None)
     }
 
@@ -946,6 +992,42 @@ mod tests {
         assert!(legend.contains("tension: red, max 8.00 N"), "{legend}");
         assert!(legend.contains("compression: blue, max 5.00 N"), "{legend}");
         assert!(legend.contains("deployment step 7"), "{legend}");
+        rec.finish(&Outcome::Complete).unwrap();
+    }
+
+    /// The closest strut pair is drawn in magenta, with the link of its closest points, and
+    /// named in the legend when its clearance is below 2 × the larger radius; not above.
+    #[test]
+    fn highlights_the_closest_pair_when_near() {
+        let model = TowerSpec {
+            struts: 3,
+            stages: 1,
+            ..TowerSpec::paper()
+        }
+        .build();
+        let mut rec = scene_recorder(&model, "near.mcap");
+        let x = model.positions();
+        let forces = vec![1.0; model.members.len()];
+        let near = |clearance| Nearest {
+            clearance,
+            members: [0, 2],
+            points: [x[0], x[1]],
+            radius: 0.05,
+        };
+        rec.nearest = Some(near(0.099));
+        let entity = decoded_scene(&mut rec, &x, &forces);
+        let last = entity.lines.last().unwrap();
+        assert_eq!(
+            (last.color.unwrap(), last.thickness, last.points.len()),
+            (MAGENTA, 2.0 * STRUT_WIDTH, 6)
+        );
+        let [a, b] = [0, 2].map(|m| model.members[m].id.as_str());
+        let legend = &entity.texts[0].text;
+        assert!(legend.contains(&format!("closest struts {a}, {b}: clearance 0.0990 m")), "{legend}");
+        rec.nearest = Some(near(0.101));
+        let entity = decoded_scene(&mut rec, &x, &forces);
+        assert!(entity.lines.iter().all(|l| l.color.unwrap() != MAGENTA));
+        assert!(!entity.texts[0].text.contains("closest"));
         rec.finish(&Outcome::Complete).unwrap();
     }
 

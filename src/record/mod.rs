@@ -4,10 +4,13 @@
 //! [`Recorder`] (in [`crate::output`]); [`Recorders`] fans out to several. Nothing here
 //! knows files or threads.
 
+mod clearance;
 mod fanout;
 
 pub use crate::dynamics::Energy;
 pub use crate::rigidity::Rigidity;
+pub use crate::model::clearance::{Event as ClearanceEvent, EventKind, Nearest};
+pub use clearance::{ClearanceLog, ClearanceSummary};
 pub use fanout::Recorders;
 
 use crate::model::{Model, AXES};
@@ -124,6 +127,18 @@ pub struct Frame<'a> {
     /// The lowest modes at this step (folding with `folding.eigen`): ω² ascending
     /// [rad²/s²] and the mass-normalised lowest mode over every node [m·kg^-1/2].
     pub modes: Option<FrameModes<'a>>,
+    /// Strut clearance at this step; `None` when not tracked (`outputs.clearance: false`).
+    pub clearance: Option<FrameClearance<'a>>,
+}
+
+/// Strut clearance at one step (see [`crate::model::clearance`]).
+#[derive(Clone, Copy, Debug)]
+pub struct FrameClearance<'a> {
+    /// The closest pair of non-adjacent struts; `None` without two such struts.
+    pub nearest: Option<Nearest>,
+    /// The touches and pass-throughs since the previous recorded step (those between
+    /// unrecorded steps included), in the order seen.
+    pub events: &'a [ClearanceEvent],
 }
 
 /// The lowest modes at one step of a stage.
@@ -169,6 +184,8 @@ pub struct FormFindRecord<'a> {
     pub residuals: &'a [f64],
     pub positions: &'a [Vector3<f64>],
     pub forces: &'a [f64],
+    /// Strut clearance of the equilibrium shape; `None` when not tracked.
+    pub clearance: Option<FrameClearance<'a>>,
 }
 
 /// Results of the eigen analysis.

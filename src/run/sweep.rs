@@ -439,7 +439,7 @@ pub enum Cell {
 
 /// The per-case columns of `summary.csv` after `case_id` and the swept axes, with their
 /// units (docs/outputs.md documents each): (name, unit).
-pub const COLUMNS: [(&str, &str); 34] = [
+pub const COLUMNS: [(&str, &str); 36] = [
     ("status", ""),
     ("run", ""),
     ("reason", ""),
@@ -474,6 +474,8 @@ pub const COLUMNS: [(&str, &str); 34] = [
     ("deploy_shape_error", "1"),
     ("deploy_mirror_shape_error", "1"),
     ("deploy_settle_time_s", "s"),
+    ("min_clearance_m", "m"),
+    ("clearance_events", "1"),
 ];
 
 /// The values of [`COLUMNS`] for one case, in that order.
@@ -484,6 +486,7 @@ pub fn cells(o: &CaseOutcome) -> Vec<Cell> {
     let free = s.and_then(|s| s.free_vibration.as_ref());
     let dep = s.and_then(|s| s.deployment.as_ref());
     let analysis = s.map(|s| &s.structure_analysis).filter(|a| a.skipped.is_none());
+    let clearance = s.and_then(|s| s.clearance.as_ref());
     // A model given with rest lengths solves its equilibrium in place of form-finding.
     let stage = |name: &str| s.and_then(|s| s.stage_seconds.get(name).copied());
     let shaping = stage("formfinding").or_else(|| stage("equilibrium"));
@@ -524,6 +527,8 @@ pub fn cells(o: &CaseOutcome) -> Vec<Cell> {
         f(dep.map(|d| d.shape_error)),
         f(dep.map(|d| d.mirror_shape_error)),
         f(dep.and_then(|d| d.transient.settle_time)),
+        f(clearance.and_then(|c| c.nearest.as_ref()).map(|n| n.clearance)),
+        f(clearance.map(|c| c.event_count as f64)),
     ]
 }
 

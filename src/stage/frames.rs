@@ -1,5 +1,6 @@
 use crate::dynamics::{Energy, Newmark};
-use crate::record::{Constraints, Frame, FrameModes, RecordResult, Recorder, Stage};
+use crate::model::clearance::Tracker;
+use crate::record::{Constraints, Frame, FrameClearance, FrameModes, RecordResult, Recorder, Stage};
 use crate::structure::Structure;
 use crate::tsm::{Assembly, DofMap};
 use nalgebra::Vector3;
@@ -7,7 +8,12 @@ use nalgebra::Vector3;
 /// Builds the frames a stage records from its assembly, with buffers reused for every
 /// recorded step (a time step allocates nothing): positions, velocities, member forces and
 /// lengths, the applied load, the reactions at the stage's constrained directions and the
-/// equilibrium check of the whole structure.
+/// equilibrium check of the whole structure, and the struts' clearance.
+///
+/// Clearance. When the structure's struts are followed, every recorded step carries the
+/// nearest pair and the events since the previous recorded one; a stage that skips steps
+/// between records (`outputs.every`) gives them to [`FrameBuilder::observe`], so that a
+/// pass-through is found between consecutive steps, not only between recorded ones.
 ///
 /// Reactions. At a constrained direction (node n, axis a) the node's balance is
 /// R + f − p − f_β − m a_s = 0, so the reaction is R = p + f_β − f + m a_s: p the internal
@@ -36,6 +42,8 @@ pub struct FrameBuilder {
     /// The lowest modes (ω², lowest mode over every node) the next frames carry, when the
     /// stage computes them (folding with `folding.eigen`).
     pub modes: Option<(Vec<f64>, Vec<Vector3<f64>>)>,
+    /// Follows the struts' clearance (`None`: not followed).
+    clearance: Option<Tracker>,
 }
 
 /// The largest out-of-balance of the whole structure over a stage's recorded steps.
@@ -77,6 +85,15 @@ impl FrameBuilder {
             damping: vec![0.0; 3 * nodes],
             check: EquilibriumCheck::default(),
             modes: None,
+            clearance: structure.struts.clone().map(Tracker::new),
+        }
+    }
+
+    /// Follows the clearance through step `step` at `time` (positions `x`), which is not
+    /// recorded: its events go with the next recorded frame.
+    pub fn observe(&mut self, x: &[Vector3<f64>], step: usize, time: f64) {
+        if let Some(tracker) = &mut self.clearance {
+            tracker.observe(x, step, time);
         }
     }
 
@@ -153,7 +170,8 @@ impl FrameBuilder {
         self.forces.extend(asm.states.iter().map(|s| s.force));
         self.lengths.clear();
         self.lengths.extend(asm.states.iter().map(|s| s.length));
-        recorder.frame(&Frame {
+        let nearest = self.clearance.as_mut().map(|t| t.observe(&asm.x, step, time));
+        let recorded = recorder.frame(&Frame {
             step,
             time,
             positions: &asm.x,
@@ -165,7 +183,15 @@ impl FrameBuilder {
             reactions: &self.reactions,
             equilibrium_error: error,
             modes: self.modes.as_ref().map(|(omega2, lowest)| FrameModes { omega2, lowest }),
-        })
+            clearance: self.clearance.as_ref().zip(nearest).map(|(t, nearest)| FrameClearance {
+                nearest,
+                events: t.events(),
+            }),
+        });
+        if let Some(tracker) = &mut self.clearance {
+            tracker.clear_events();
+        }
+        recorded
     }
 }
 

@@ -5,6 +5,7 @@
 use super::eigen::{largest_diagonal, lowest_stiffness};
 use crate::error::{Error, Result};
 use crate::law::ForceLaw;
+use crate::model::clearance::{Search, Struts};
 use crate::model::{MemberKind, Model};
 use crate::solve::{SparseSolver, TangentSink, TangentSolver};
 use crate::structure::{State, Structure};
@@ -22,16 +23,23 @@ pub struct Materials {
     pub linear_density: Vec<f64>,
     /// Point mass of every node [kg] (empty: none).
     pub point_masses: Vec<f64>,
+    /// Radius of every member as a solid round bar of its cross-section, √(A/π) [m]: what
+    /// strut clearance is measured with.
+    pub radius: Vec<f64>,
 }
 
 impl Materials {
-    /// The real structure with `rest` lengths, masses lumped from the members.
+    /// The real structure with `rest` lengths, masses lumped from the members, its
+    /// struts' clearance followed.
     pub fn structure(&self, model: &Model, rest: Vec<f64>) -> Structure {
         let elements = Elements {
             laws: self.laws.clone(),
             rest,
         };
-        Structure::with_lumped_masses(model.clone(), elements, &self.linear_density, &self.point_masses)
+        Structure {
+            struts: Some(Arc::new(Struts::new(model, &self.radius, Search::Auto))),
+            ..Structure::with_lumped_masses(model.clone(), elements, &self.linear_density, &self.point_masses)
+        }
     }
 
     /// Substitution: the real structure that carries `scale` × the form-found `forces`

@@ -211,7 +211,7 @@ impl Transient {
         // direction (on a supported one it goes into the support), and under ground motion
         // the inertia load −m a_g on the free ones (the supports move with the ground).
         let mut applied = constant.clone();
-        let mut record = |nm: &Newmark, step: usize, load_time: f64, recorder: &mut dyn Recorder| {
+        let mut record = |frames: &mut FrameBuilder, nm: &Newmark, step: usize, load_time: f64, recorder: &mut dyn Recorder| {
             applied.copy_from_slice(&constant);
             self.loads.add_nodal(load_time, &mut applied);
             let ground = self.loads.ground_acceleration(load_time);
@@ -227,7 +227,7 @@ impl Transient {
             };
             frames.record_motion(recorder, motion, step, &applied).map_err(record_error(name))
         };
-        record(&nm, 0, 0.0, recorder)?;
+        record(&mut frames, &nm, 0, 0.0, recorder)?;
         // The time the shape error last came (and stayed) within the tolerance.
         let mut settled_since = None;
         let mut track = |x: &[Vector3<f64>], time: f64| {
@@ -257,7 +257,9 @@ impl Transient {
             summary.add_step(&nm, time, load_end, dt, &mut mechanical);
             track(&nm.asm.x, time);
             if step % settings.every == 0 || step == steps {
-                record(&nm, step, load_time, recorder)?;
+                record(&mut frames, &nm, step, load_time, recorder)?;
+            } else {
+                frames.observe(&nm.asm.x, step, time);
             }
         }
         recorder.end_stage(self.stage).map_err(record_error(name))?;

@@ -95,7 +95,11 @@ def test_every_group_opens_in_xarray_with_named_dims(sample):
     for g in ["free_vibration", "folding", "deployment"]:
         # support: the tower's 8 supported directions (5 base nodes in z, b0_0 in x and y,
         # b0_1 in one more).
-        expected_dims[g] = {"time": len(recorded_steps(STEPS[g])), "node": 20, "member": 50, "xyz": 3, "support": 8}
+        # pair: a strut pair's two members; clearance_event: none in the sample.
+        expected_dims[g] = {
+            "time": len(recorded_steps(STEPS[g])), "node": 20, "member": 50, "xyz": 3, "support": 8,
+            "pair": 2, "clearance_event": 0,
+        }
     for g in GROUPS:
         ds = xr.open_dataset(path, engine="h5netcdf", group=g)
         assert dict(ds.sizes) == expected_dims[g], g
@@ -112,6 +116,12 @@ def test_every_group_opens_in_xarray_with_named_dims(sample):
     assert deployment.velocity.dims == ("time", "node", "xyz")
     assert deployment.member_force.dims == ("time", "member")
     assert deployment.kinetic_energy.attrs["units"] == "J"
+    # write_sample: smallest clearance 0.5 − 1e-3 s between members 0 and 1 at step s.
+    steps = np.array(recorded_steps(STEPS["deployment"]))
+    np.testing.assert_allclose(deployment.min_clearance.values, 0.5 - 1e-3 * steps, rtol=0, atol=1e-15)
+    assert deployment.min_clearance.attrs["units"] == "m"
+    assert (deployment.min_clearance_pair.values == [0, 1]).all()
+    assert deployment.clearance_event_kind.attrs["flag_meanings"] == "touch pass_through"
 
 
 def test_reactions_and_applied_loads_have_named_dims_and_units(sample):
