@@ -8,8 +8,8 @@ mod clearance;
 mod fanout;
 
 pub use crate::dynamics::Energy;
-pub use crate::rigidity::Rigidity;
 pub use crate::model::clearance::{Event as ClearanceEvent, EventKind, Nearest};
+pub use crate::rigidity::Rigidity;
 pub use clearance::{ClearanceLog, ClearanceSummary};
 pub use fanout::Recorders;
 
