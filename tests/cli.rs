@@ -641,8 +641,8 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
 /// Work past a limit is refused by `check` and `run` with the estimate, the limit, the
 /// largest part at its line and the override; `--allow-large` or a `limits` section lets
 /// it pass `check`. The three limits: output of the run (a deployment of 5·10⁷ steps,
-/// about 90 GB), peak memory of a case (the eigen stage of a 2000-stage prism tower, 36 000
-/// free DOF), steps of a stage (10⁹ folding steps).
+/// about 90 GB), peak memory of a case (the dense eigen stage of a 2000-stage prism tower,
+/// 36 000 free DOF), steps of a stage (10⁹ folding steps).
 #[test]
 fn work_over_a_limit_is_refused_naming_the_override() {
     let good = std::fs::read_to_string(SWEEP).unwrap();
@@ -655,7 +655,9 @@ fn work_over_a_limit_is_refused_naming_the_override() {
             "limits: { max_output_gb: 1000 }",
         ),
         (
-            base.replace("stages: 1,", "stages: 2000,"),
+            // The dense eigen path asked for: the default (partial above 1500 DOF) fits.
+            base.replace("stages: 1,", "stages: 2000,")
+                .replace("eigen:\n", "eigen:\n  solver: dense\n"),
             "eigen:",
             "`eigen`: estimated peak memory ",
             "limits: { max_memory_gb: 100 }",
