@@ -178,7 +178,7 @@ def read_case(h5path, config):
         for g in f.keys():
             if g == "model":
                 continue
-            stages[g] = {k: f[g][k][:] for k in f[g].keys() if isinstance(f[g][k], h5py.Dataset)}
+            stages[g] = {k: f[g][k][()] for k in f[g].keys() if isinstance(f[g][k], h5py.Dataset)}  # [()]: scalars too
             stages[g]["attrs"] = dict(f[g].attrs)
         case["stages"] = stages
     case["E"], case["A"], case["rho"], case["tension_only"] = materials_of(

@@ -4,7 +4,7 @@
 
 use super::{
     ClearanceEvent, Constraints, EigenRecord, FormFindRecord, Frame, FrameClearance, ModelRecord, Nearest, Outcome, RecordResult, Recorder,
-    Stage,
+    RigidityRecord, Stage,
 };
 
 /// Most events listed in the summary (all are counted, and all are in `result.h5`): a long
@@ -123,6 +123,9 @@ impl Recorder for ClearanceLog<'_> {
     fn formfinding(&mut self, record: &FormFindRecord) -> RecordResult {
         self.note(record.stage, 0, 0.0, record.clearance);
         self.inner.formfinding(record)
+    }
+    fn rigidity(&mut self, record: &RigidityRecord) -> RecordResult {
+        self.inner.rigidity(record)
     }
     fn eigen(&mut self, record: &EigenRecord) -> RecordResult {
         self.inner.eigen(record)
