@@ -23,8 +23,9 @@
 
 use super::{null_space, proper, rank_tolerance};
 use crate::model::Model;
+use crate::solve::symmetric_eigen;
 use crate::tsm::{assemble_tangent, DofMap, MemberState};
-use faer::{Mat, Side};
+use faer::Mat;
 use nalgebra::Vector3;
 
 /// Relative threshold for a positive eigenvalue of Q: Q is resolved to ~n ε ‖K_G‖ in
@@ -61,8 +62,8 @@ pub(super) fn test(model: &Model, dofs: &DofMap, x: &[Vector3<f64>], stress: Opt
     let (stiffness, mechanisms) = if q.nrows() == 0 {
         (Vec::new(), internal)
     } else {
-        let evd = q.self_adjoint_eigen(Side::Lower).expect("symmetric eigen of Q");
-        ((0..q.nrows()).map(|i| evd.S()[i]).collect(), &internal * evd.U())
+        let (values, vectors) = symmetric_eigen(q.as_ref()).expect("symmetric eigen of Q");
+        (values, &internal * vectors)
     };
     // A tensegrity needs a proper stress to be stable at all (Roth & Whiteley 1981: cables
     // cannot push), then Q ≻ 0 on the internal mechanisms (none: first-order rigid).
@@ -115,8 +116,7 @@ fn super_stable(model: &Model, x: &[Vector3<f64>], t: &[f64], states: &[MemberSt
         omega[(j, i)] -= q;
     }
     let (span, d) = affine_span(x);
-    let evd = omega.self_adjoint_eigen(Side::Lower).expect("symmetric eigen of the stress matrix");
-    let lambda: Vec<f64> = (0..n).map(|i| evd.S()[i]).collect();
+    let (lambda, _) = symmetric_eigen(omega.as_ref()).expect("symmetric eigen of the stress matrix");
     let tol = stress_matrix_tolerance(&omega, x, &lambda);
     let nullity = lambda.iter().filter(|l| l.abs() <= tol).count();
     if lambda[0] < -tol {

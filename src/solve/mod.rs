@@ -1,14 +1,16 @@
 //! Numerical machinery that knows matrices and residuals but no mechanics: the one
-//! Newton-Raphson driver every stage uses, the linear solves inside it, and the partial
-//! symmetric eigensolver (shift-invert Lanczos on a sparse factorization).
+//! Newton-Raphson driver every stage uses, the linear solves inside it, and the dense and
+//! partial symmetric eigensolvers (shift-invert Lanczos on a sparse factorization).
 
 mod bisect;
+mod dense_eigen;
 mod eigen;
 mod linear;
 mod newton;
 pub mod small_solve;
 
 pub use bisect::bisect;
+pub use dense_eigen::symmetric_eigen;
 pub use eigen::{krylov_dimension, partial_eigen, Diagonal, EigenError, EigenPairs, Shift};
 pub use linear::{DenseSolver, LinearError, SparseSolver, TangentSink, TangentSolver};
 pub use newton::{

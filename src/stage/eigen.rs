@@ -14,10 +14,10 @@ use crate::dynamics::Rayleigh;
 use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::record::{EigenRecord, Recorder};
-use crate::solve::{krylov_dimension, partial_eigen, Diagonal, Shift, TangentSink};
+use crate::solve::{krylov_dimension, partial_eigen, symmetric_eigen, Diagonal, Shift, TangentSink};
 use crate::structure::{State, Structure};
 use crate::tsm::{tangent_pattern, Assembly, DofMap};
-use faer::{Mat, Side};
+use faer::Mat;
 use nalgebra::Vector3;
 
 /// Where Rayleigh damping comes from.
@@ -271,12 +271,10 @@ fn dense_modes(k: &Mat<f64>, mass: &[f64]) -> Result<Modes> {
     let inv_sqrt: Vec<f64> = mass.iter().map(|m| 1.0 / m.sqrt()).collect();
     let n = mass.len();
     let c = Mat::from_fn(n, n, |i, j| k[(i, j)] * inv_sqrt[i] * inv_sqrt[j]);
-    let evd = c.self_adjoint_eigen(Side::Lower).map_err(|e| Error::Stage {
+    let (omega2, y) = symmetric_eigen(c.as_ref()).map_err(|e| Error::Stage {
         stage: "eigen",
         reason: format!("eigen solver failed: {e:?}"),
     })?;
-    let omega2: Vec<f64> = (0..n).map(|i| evd.S()[i]).collect();
-    let y = evd.U();
     let shapes = Mat::from_fn(n, n, |i, j| y[(i, j)] * inv_sqrt[i]);
     Ok(Modes { omega2, shapes })
 }
@@ -302,11 +300,11 @@ pub fn lowest_stiffness(asm: &Assembly) -> Result<(f64, String)> {
         })?;
         (pairs.values[0], largest(pairs.vectors.as_ref()))
     } else {
-        let evd = tangent_matrix(asm).self_adjoint_eigen(Side::Lower).map_err(|e| Error::Stage {
+        let (values, vectors) = symmetric_eigen(tangent_matrix(asm).as_ref()).map_err(|e| Error::Stage {
             stage: "stability",
             reason: format!("eigen solver failed: {e:?}"),
         })?;
-        (evd.S()[0], largest(evd.U()))
+        (values[0], largest(vectors.as_ref()))
     };
     Ok((lowest, dofs.label(model, i)))
 }
