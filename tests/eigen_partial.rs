@@ -149,7 +149,11 @@ fn the_dense_path_keeps_the_low_modes_of_a_stiff_strut_tower() {
     let bound = 1e-12 * c.norm_l2();
     let kphi = &k * &d.shapes;
     for (j, (w2, exact)) in d.omega2.iter().zip(&p.omega2).enumerate() {
-        assert!(*w2 > 0.0 && (w2 - exact).abs() <= bound, "mode {}: dense ω² {w2:e}, partial {exact:e}", j + 1);
+        assert!(
+            *w2 > 0.0 && (w2 - exact).abs() <= bound,
+            "mode {}: dense ω² {w2:e}, partial {exact:e}",
+            j + 1
+        );
         // ‖M^-½(Kφ − ω²Mφ)‖ for M-normalised φ is ‖Cy − ω²y‖ for the unit y = M^½φ.
         let r: f64 = (0..n)
             .map(|i| (kphi[(i, j)] - w2 * mass[i] * d.shapes[(i, j)]).powi(2) / mass[i])

@@ -20,10 +20,22 @@ pub fn symmetric_eigen(a: MatRef<'_, f64>) -> Result<(Vec<f64>, Mat<f64>), EvdEr
     let mut params: SelfAdjointEvdParams = Auto::<f64>::auto();
     // Never recurse: the QR algorithm on the whole tridiagonal matrix.
     params.recursion_threshold = usize::MAX;
-    let mut mem = MemBuffer::new(self_adjoint_evd_scratch::<f64>(n, ComputeEigenvectors::Yes, Par::Seq, params.into()));
+    let mut mem = MemBuffer::new(self_adjoint_evd_scratch::<f64>(
+        n,
+        ComputeEigenvectors::Yes,
+        Par::Seq,
+        params.into(),
+    ));
     let mut values = Diag::<f64>::zeros(n);
     let mut vectors = Mat::<f64>::zeros(n, n);
-    self_adjoint_evd(a, values.as_mut(), Some(vectors.as_mut()), Par::Seq, MemStack::new(&mut mem), params.into())?;
+    self_adjoint_evd(
+        a,
+        values.as_mut(),
+        Some(vectors.as_mut()),
+        Par::Seq,
+        MemStack::new(&mut mem),
+        params.into(),
+    )?;
     Ok(((0..n).map(|i| values[i]).collect(), vectors))
 }
 
