@@ -533,11 +533,8 @@ fn check_measure(m: &MeasureSpec, p: &mut Problems) {
 const MAX_ITERATIONS: usize = 10_000;
 
 fn check_newton(n: &NewtonSettings, p: &mut Problems) {
-    if n.max_iterations == 0 || n.max_iterations > MAX_ITERATIONS {
-        p.add(
-            "newton.max_iterations",
-            format!("is {}; must lie in 1..={MAX_ITERATIONS}", n.max_iterations),
-        );
+    if let Some(cap) = n.max_iterations.filter(|&cap| cap == 0 || cap > MAX_ITERATIONS) {
+        p.add("newton.max_iterations", format!("is {cap}; must lie in 1..={MAX_ITERATIONS}"));
     }
     for (field, v) in [
         ("newton.force_tolerance", n.force_tolerance),

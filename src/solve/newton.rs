@@ -4,9 +4,13 @@ use super::linear::{dof_text, ratio_text, DenseSolver, LinearError, SparseSolver
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct NewtonSettings {
-    /// Iteration cap; beyond it the solve fails (stages may then cut the step). Default 50:
-    /// Newton on these problems converges in under 10 iterations when it converges at all.
-    pub max_iterations: usize,
+    /// Iteration cap; beyond it the solve fails (stages may then cut the step). Default
+    /// 50, where Newton converges in under 10 iterations when it converges at all (time
+    /// and load steps), and [`MINIMIZE_MAX_ITERATIONS`] in form-finding, a minimization
+    /// from the nominal shape that the energy line search globalizes: every iteration
+    /// lowers the potential, and a tall tower needs more than 50 (131 for a 5-strut,
+    /// 100-stage tower, bench/formfinding.md).
+    pub max_iterations: Option<usize>,
     /// Residual tolerance relative to the force scale (largest member or applied force).
     /// Default 1e-10.
     pub force_tolerance: f64,
@@ -141,10 +145,24 @@ impl NewtonWorkspace {
     }
 }
 
+/// The iteration cap of a step (time or load) when the config sets none.
+pub const STEP_MAX_ITERATIONS: usize = 50;
+/// The iteration cap of form-finding's minimization when the config sets none.
+pub const MINIMIZE_MAX_ITERATIONS: usize = 500;
+
+impl NewtonSettings {
+    /// The iteration cap: the configured one, else the default of a step or of a
+    /// minimization.
+    pub fn iteration_cap(&self, minimize: bool) -> usize {
+        self.max_iterations
+            .unwrap_or(if minimize { MINIMIZE_MAX_ITERATIONS } else { STEP_MAX_ITERATIONS })
+    }
+}
+
 impl Default for NewtonSettings {
     fn default() -> Self {
         NewtonSettings {
-            max_iterations: 50,
+            max_iterations: None,
             force_tolerance: 1e-10,
             displacement_tolerance: 1e-10,
             max_step: 0.05,
@@ -338,8 +356,10 @@ fn iterate(
     ws.history.clear();
     ws.energies.clear();
     let mut energy = problem.energy(u);
+    let mut stalled = false;
     ws.energies.extend(energy);
-    for iteration in 0..=settings.max_iterations {
+    let cap = settings.iteration_cap(ws.minimize);
+    for iteration in 0..=cap {
         let scale = problem.residual(u, &mut ws.r);
         let (res, worst_dof) = max_abs(&ws.r).map_err(|dof| {
             ws.history.push(ws.r[dof].abs());
@@ -347,14 +367,19 @@ fn iterate(
         })?;
         ws.history.push(res);
         let tolerance = settings.force_tolerance * scale.force + scale.roundoff;
-        if res <= tolerance && (iteration == 0 || increment <= increment_tolerance) {
+        // At the residual's round-off floor a minimization also ends when its last step
+        // lowered the energy by no more than the energy's round-off: the state is a
+        // minimum to round-off, and an increment left is noise through a direction
+        // softer than K's round-off (a 100-stage tower's measure structure, lowest
+        // eigenvalue ~1e-17 of its largest, wandered 90 iterations there).
+        if res <= tolerance && (iteration == 0 || increment <= increment_tolerance || stalled) {
             return Ok(NewtonReport {
                 iterations: iteration,
                 factorizations,
                 residual: res,
             });
         }
-        if iteration == settings.max_iterations {
+        if iteration == cap {
             return Err(SolveError::NotConverged {
                 iterations: iteration,
                 residual: res,
@@ -384,6 +409,7 @@ fn iterate(
         match energy {
             Some(e0) => {
                 let (moved, e, corrections) = line_search(problem, u, e0, ws)?;
+                stalled = e0 - e <= ENERGY_ROUNDOFF * e0.abs();
                 increment = moved;
                 factorizations += corrections;
                 energy = Some(e);
@@ -621,7 +647,7 @@ mod tests {
 
     fn run(first: [f64; 2], later: [f64; 2], stiffness: f64) -> Result<NewtonReport, SolveError> {
         let settings = NewtonSettings {
-            max_iterations: 5,
+            max_iterations: Some(5),
             ..Default::default()
         };
         let mut ws = NewtonWorkspace::new(2, &settings, false, Vec::new);

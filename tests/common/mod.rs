@@ -17,6 +17,11 @@ pub struct Found {
     pub lengths: Vec<f64>,
     #[allow(dead_code)] // as above
     pub max_reaction: f64,
+    #[allow(dead_code)] // as above
+    pub iterations: usize,
+    /// The lowest eigenvalue of the measure structure's K_T at the shape [N/m].
+    #[allow(dead_code)] // as above
+    pub lowest_stiffness: f64,
 }
 
 /// Form-finding of `model` with `elements` from its coordinates, through the stage interface.
@@ -32,5 +37,7 @@ pub fn form_find(model: &Model, elements: &Elements, newton: &NewtonSettings) ->
         forces: eq.forces,
         lengths: eq.lengths,
         max_reaction: eq.max_reaction,
+        iterations: eq.residuals.len() - 1,
+        lowest_stiffness: eq.lowest_stiffness,
     })
 }
