@@ -44,7 +44,8 @@ fn main() -> Result<()> {
         return Err("--every must be at least 1".into());
     }
     let h5 = Hdf5Recorder::create(&out.join("result.h5"), "sample", "case: sample\n")?;
-    let mcap = McapRecorder::create(&out.join("replay.mcap"), "sample")?;
+    // Replay rate 0: every frame, which the interop tests count.
+    let mcap = McapRecorder::create(&out.join("replay.mcap"), "sample", 0.0)?;
     let (mut h5, mut mcap) = (Background::new(h5, "hdf5"), Background::new(mcap, "mcap"));
     let mut recorders: [&mut dyn Recorder; 2] = [&mut h5, &mut mcap];
     let mut each = |f: &mut dyn FnMut(&mut dyn Recorder) -> tsim::record::RecordResult| recorders.iter_mut().try_for_each(|r| f(&mut **r));

@@ -488,6 +488,14 @@ pub struct OutputSpec {
     pub hdf5: bool,
     #[serde(default = "yes")]
     pub mcap: bool,
+    /// Frames per second of simulated time in `replay.mcap` for time-stepping stages
+    /// [Hz]: a frame is logged when at least 1/rate has passed since the last one logged,
+    /// and a stage's first and last frames always are; 0 logs every recorded step.
+    /// result.h5 keeps every recorded step either way. Default 1000: at 0.1× playback
+    /// Foxglove still gets 100 frames per second, and the paper's deployment at
+    /// dt = 0.5 ms writes half the frames (bench/outputs.md).
+    #[serde(default = "default_replay_rate")]
+    pub replay_rate: f64,
     /// Draw the case's figures after it completes, with the figures script
     /// (`scripts/figures`, or the command in `TSIM_FIGURES`). Needs Python; a failure
     /// is noted in `outcome.json` and does not fail the case.
@@ -502,6 +510,9 @@ pub struct OutputSpec {
 fn one_usize() -> usize {
     1
 }
+fn default_replay_rate() -> f64 {
+    1000.0
+}
 fn yes() -> bool {
     true
 }
@@ -512,6 +523,7 @@ impl Default for OutputSpec {
             every: 1,
             hdf5: true,
             mcap: true,
+            replay_rate: default_replay_rate(),
             figures: false,
             clearance: true,
         }

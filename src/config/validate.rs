@@ -124,6 +124,15 @@ impl CaseConfig {
         if self.outputs.every == 0 {
             p.add("outputs.every", "is 0; must be ≥ 1");
         }
+        if !(self.outputs.replay_rate >= 0.0) {
+            p.add(
+                "outputs.replay_rate",
+                format!(
+                    "is {}; must be ≥ 0 frames per second (0: every recorded step)",
+                    self.outputs.replay_rate
+                ),
+            );
+        }
         check_name(&self.name, &mut p);
         check_newton(&self.newton, &mut p);
         match model {

@@ -39,7 +39,11 @@ pub fn file_recorders(
         files.push(Box::new(h5));
     }
     if outputs.mcap {
-        files.push(Box::new(replay::McapRecorder::create(&dir.join("replay.mcap"), case_id)?));
+        files.push(Box::new(replay::McapRecorder::create(
+            &dir.join("replay.mcap"),
+            case_id,
+            outputs.replay_rate,
+        )?));
     }
     let files = Recorders(files);
     Ok(if background && !files.0.is_empty() {

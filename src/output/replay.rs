@@ -16,7 +16,8 @@
 //! - `/tsim/stage` (`stagestart.StageStart`): one message at the start of each stage.
 //!
 //! Scene, energy and members are logged together at every recorded step of a time-stepping
-//! stage; form-finding logs one scene and one members message (its equilibrium; it has no
+//! stage, thinned to `outputs.replay_rate` frames per simulated second (its first and last
+//! steps always kept: [`McapRecorder::create`]); form-finding logs one scene and one members message (its equilibrium; it has no
 //! energy ledger). A metadata record `case` (case id, tsim version) opens the file and one
 //! named `status` ("complete" or "failed: <reason>") closes it; a killed process leaves a
 //! file with neither that record nor an MCAP footer.
@@ -396,6 +397,25 @@ pub struct McapRecorder {
     legend_key: String,
     stage: Option<Stage>,
     buf: Vec<u8>,
+    /// Shortest simulated time between two frames logged in a time-stepping stage [s]
+    /// (`1 / outputs.replay_rate`; 0: every frame given).
+    min_interval: f64,
+    /// Stage time of the stage's last logged frame [s].
+    logged_at: Option<f64>,
+    /// The stage's latest frame when it was not logged: logged at the stage's end, so
+    /// that a replay always shows where a stage ends.
+    held: Option<HeldFrame>,
+}
+
+/// A frame kept for [`McapRecorder::end_stage`].
+struct HeldFrame {
+    step: usize,
+    /// Log time [s].
+    t: f64,
+    positions: Vec<Vector3<f64>>,
+    forces: Vec<f64>,
+    energy: Energy,
+    nearest: Option<Nearest>,
 }
 
 struct Channels {
@@ -406,9 +426,11 @@ struct Channels {
 }
 
 impl McapRecorder {
-    /// Creates (truncates) `path`. Every frame given is logged: the output stride is applied
-    /// by the stages.
-    pub fn create(path: &Path, case_id: &str) -> Result<Self, Error> {
+    /// Creates (truncates) `path`. The output stride is applied by the stages; of the
+    /// frames given, a time-stepping stage logs its first, its last, and each one at least
+    /// `1 / replay_rate` s of simulated time after the last logged one (every frame with
+    /// `replay_rate` 0). Static stages log every frame.
+    pub fn create(path: &Path, case_id: &str, replay_rate: f64) -> Result<Self, Error> {
         // zstd level −1, zstd's first "fast" level: as small a file as level 1 on the paper
         // case (20.7 MB either way) for 8 % less writer CPU; lz4 cost as much CPU for a file
         // 46 % larger; levels −3 and −5 cut the writer's CPU by a further 6 % and 9 % for
@@ -451,6 +473,9 @@ impl McapRecorder {
             legend_key: String::new(),
             stage: None,
             buf: Vec::new(),
+            min_interval: if replay_rate > 0.0 { 1.0 / replay_rate } else { 0.0 },
+            logged_at: None,
+            held: None,
         })
     }
 
@@ -626,9 +651,36 @@ impl McapRecorder {
     fn record_frame(&mut self, frame: &Frame) -> Result<(), Error> {
         let stage = self.stage.ok_or("MCAP: frame outside a time-stepping stage")?;
         let t = self.clock.frame_time(frame);
+        let nearest = frame.clearance.and_then(|c| c.nearest);
+        // 1e-9: a time step that divides the interval exactly is not lost to round-off.
+        let due = stage.is_static() || self.logged_at.is_none_or(|at| frame.time - at >= self.min_interval * (1.0 - 1e-9));
+        if !due {
+            self.held = Some(HeldFrame {
+                step: frame.step,
+                t,
+                positions: frame.positions.to_vec(),
+                forces: frame.forces.to_vec(),
+                energy: frame.energy,
+                nearest,
+            });
+            return Ok(());
+        }
+        self.held = None;
+        self.logged_at = Some(frame.time);
         let ns = self.clock.step_stamp(t);
-        self.nearest = frame.clearance.and_then(|c| c.nearest);
+        self.nearest = nearest;
         self.log_state(stage, frame.step, ns, frame.positions, frame.forces, Some(frame.energy))
+    }
+
+    /// Logs the stage's last frame if [`Self::record_frame`] held it back.
+    fn log_held(&mut self, stage: Stage) -> Result<(), Error> {
+        if let Some(h) = self.held.take() {
+            let ns = self.clock.step_stamp(h.t);
+            self.nearest = h.nearest;
+            self.log_state(stage, h.step, ns, &h.positions, &h.forces, Some(h.energy))?;
+        }
+        self.logged_at = None;
+        Ok(())
     }
 }
 
@@ -797,7 +849,8 @@ impl Recorder for McapRecorder {
         self.record_frame(frame)
     }
 
-    fn end_stage(&mut self, _stage: Stage) -> RecordResult {
+    fn end_stage(&mut self, stage: Stage) -> RecordResult {
+        self.log_held(stage)?;
         self.clock.end();
         self.stage = None;
         Ok(())
@@ -895,7 +948,7 @@ mod tests {
         }
         .build();
         let path = temp_path("replay.mcap");
-        let mut rec = McapRecorder::create(&path, "case-7").unwrap();
+        let mut rec = McapRecorder::create(&path, "case-7", 0.0).unwrap();
         drive(&mut rec, &model, 10, 3).unwrap();
         rec.finish(&Outcome::Complete).unwrap();
 
@@ -931,8 +984,40 @@ mod tests {
         assert!(summary.chunk_indexes.iter().all(|c| c.compression == "zstd"));
     }
 
+    /// `replay_rate` thins the time-stepping stages' frames (not folding's), keeps each
+    /// stage's first and last frame, and leaves the timeline as it was.
+    #[test]
+    fn replay_rate_thins_frames_but_keeps_each_stages_ends() {
+        let model = TowerSpec {
+            struts: 3,
+            stages: 1,
+            ..TowerSpec::paper()
+        }
+        .build();
+        let path = temp_path("thinned.mcap");
+        // 20 Hz: at least 50 ms between logged frames; `drive` gives steps 0, 3, 6, 9, 10 at
+        // 10 ms a step, so steps 0, 6 and 10 (the last, held back and logged at the end).
+        let mut rec = McapRecorder::create(&path, "case-7", 20.0).unwrap();
+        drive(&mut rec, &model, 10, 3).unwrap();
+        rec.finish(&Outcome::Complete).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let mut times: BTreeMap<String, Vec<u64>> = BTreeMap::new();
+        for message in mcap::MessageStream::new(&bytes).unwrap() {
+            let message = message.unwrap();
+            let ms = (message.log_time as f64 / 1e6).round() as u64;
+            times.entry(message.channel.topic.clone()).or_default().push(ms);
+        }
+        // Free vibration from 0.2 s: steps 0, 6, 10; folding from 0.31 s, 0.1 s a step,
+        // every step; deployment from 1.41 s: steps 0, 6, 10.
+        let thinned = [200, 260, 300, 310, 610, 910, 1210, 1310, 1410, 1470, 1510];
+        assert_eq!(times["/tsim/energy"], thinned);
+        assert_eq!(times["/tsim/scene"][1..], thinned);
+        assert_eq!(times["/tsim/members"][1..], thinned);
+        assert_eq!(times["/tsim/stage"], [0, 100, 200, 310, 1410]);
+    }
+
     fn scene_recorder(model: &Model, name: &str) -> McapRecorder {
-        let mut rec = McapRecorder::create(&temp_path(name), "c").unwrap();
+        let mut rec = McapRecorder::create(&temp_path(name), "c", 0.0).unwrap();
         let members = model.members.len();
         rec.model(&ModelRecord {
             model,
