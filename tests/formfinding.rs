@@ -106,8 +106,8 @@ fn sparse_strut_balance_balances() {
 
 /// A 5-strut, 100-stage tower (2 992 free DOF) form-finds from its nominal shape with the
 /// default settings. It is far from balanced there (residual 16 N; the found tower is 8 %
-/// taller), and the energy line search takes 131 iterations, under the form-finding cap
-/// of 500 (at the step cap of 50 it failed). Before the round-off stop it took 214: from
+/// taller), and the energy line search takes 132 iterations, under the form-finding cap
+/// of 2000 (at the step cap of 50 it failed). Before the round-off stop it took 214: from
 /// iteration ~130 the residual sat at its floor and increments wandered along the
 /// measure structure's softest direction, whose stiffness is below K_T's round-off
 /// (|λ₁| ~ 1e-18 of the largest diagonal). 200 leaves room for a change of iterate by

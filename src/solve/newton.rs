@@ -8,8 +8,9 @@ pub struct NewtonSettings {
     /// 50, where Newton converges in under 10 iterations when it converges at all (time
     /// and load steps), and [`MINIMIZE_MAX_ITERATIONS`] in form-finding, a minimization
     /// from the nominal shape that the energy line search globalizes: every iteration
-    /// lowers the potential, and a tall tower needs more than 50 (131 for a 5-strut,
-    /// 100-stage tower, bench/formfinding.md).
+    /// lowers the potential, so the cap is only a safety net, and a tall tower needs
+    /// hundreds (a 5-strut tower: 132 for 100 stages, 543 for 200, 666 for 300;
+    /// bench/formfinding.md).
     pub max_iterations: Option<usize>,
     /// Residual tolerance relative to the force scale (largest member or applied force).
     /// Default 1e-10.
@@ -148,7 +149,7 @@ impl NewtonWorkspace {
 /// The iteration cap of a step (time or load) when the config sets none.
 pub const STEP_MAX_ITERATIONS: usize = 50;
 /// The iteration cap of form-finding's minimization when the config sets none.
-pub const MINIMIZE_MAX_ITERATIONS: usize = 500;
+pub const MINIMIZE_MAX_ITERATIONS: usize = 2000;
 
 impl NewtonSettings {
     /// The iteration cap: the configured one, else the default of a step or of a
@@ -357,6 +358,8 @@ fn iterate(
     ws.energies.clear();
     let mut energy = problem.energy(u);
     let mut stalled = false;
+    // How far the previous iteration moved (∞ before the first).
+    let mut last_moved = f64::INFINITY;
     ws.energies.extend(energy);
     let cap = settings.iteration_cap(ws.minimize);
     for iteration in 0..=cap {
@@ -367,11 +370,14 @@ fn iterate(
         })?;
         ws.history.push(res);
         let tolerance = settings.force_tolerance * scale.force + scale.roundoff;
-        // At the residual's round-off floor a minimization also ends when its last step
-        // lowered the energy by no more than the energy's round-off: the state is a
-        // minimum to round-off, and an increment left is noise through a direction
-        // softer than K's round-off (a 100-stage tower's measure structure, lowest
-        // eigenvalue ~1e-17 of its largest, wandered 90 iterations there).
+        // At the residual's round-off floor a minimization also ends when it has stalled:
+        // its last step lowered the energy by no more than the energy's round-off and
+        // moved at least half as far as the one before. Newton's increments shrink
+        // quadratically on the way to a minimum (a 4-strut prism's last ones lower the
+        // energy by less than its round-off too); increments that stop shrinking there
+        // are noise through a direction softer than K's round-off (a 100-stage tower's
+        // measure structure, lowest eigenvalue ~1e-17 of its largest, wandered 90
+        // iterations there).
         if res <= tolerance && (iteration == 0 || increment <= increment_tolerance || stalled) {
             return Ok(NewtonReport {
                 iterations: iteration,
@@ -409,8 +415,8 @@ fn iterate(
         match energy {
             Some(e0) => {
                 let (moved, e, corrections) = line_search(problem, u, e0, ws)?;
-                stalled = e0 - e <= ENERGY_ROUNDOFF * e0.abs();
-                increment = moved;
+                stalled = e0 - e <= ENERGY_ROUNDOFF * e0.abs() && moved >= 0.5 * last_moved;
+                (increment, last_moved) = (moved, moved);
                 factorizations += corrections;
                 energy = Some(e);
                 ws.energies.push(e);
