@@ -5,12 +5,11 @@ use super::linear::{dof_text, ratio_text, DenseSolver, LinearError, SparseSolver
 #[serde(deny_unknown_fields, default)]
 pub struct NewtonSettings {
     /// Iteration cap; beyond it the solve fails (stages may then cut the step). Default
-    /// 50, where Newton converges in under 10 iterations when it converges at all (time
-    /// and load steps), and [`MINIMIZE_MAX_ITERATIONS`] in form-finding, a minimization
-    /// from the nominal shape that the energy line search globalizes: every iteration
-    /// lowers the potential, so the cap is only a safety net, and a tall tower needs
-    /// hundreds (a 5-strut tower: 132 for 100 stages, 543 for 200, 666 for 300;
-    /// bench/formfinding.md).
+    /// 50 in time and load steps, where Newton converges in under 10 iterations when it
+    /// converges at all, and 2000 in form-finding, a minimization from the nominal shape
+    /// that the energy line search globalizes: every iteration lowers the potential, so
+    /// the cap is only a safety net, and a tall tower needs hundreds (a 5-strut tower:
+    /// 132 for 100 stages, 543 for 200, 666 for 300; bench/formfinding.md).
     pub max_iterations: Option<usize>,
     /// Residual tolerance relative to the force scale (largest member or applied force).
     /// Default 1e-10.
