@@ -5,8 +5,8 @@
 //! cable net) loses backward stability in faer 0.24.4. On the 711-DOF aluminium/rubber
 //! tower it returned ω²₁ = −17.0 s⁻² for a positive-definite matrix whose ω²₁ is 0.188
 //! (pair residuals up to 2e-8 ‖C‖, 1e-5 ‖C‖ on a steel tower). The QR algorithm keeps
-//! residuals at ~1e-14 ‖C‖ on the same matrices, at 1.3–2× the time of divide and conquer
-//! and 5× faster than nalgebra's (bench/eigen.md, "Dense path").
+//! residuals at ~1e-14 ‖C‖ on the same matrices, at 1.3–2.4× the time of divide and conquer
+//! and 4–8× faster than nalgebra's (bench/eigen.md, "Dense path").
 
 use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
