@@ -402,12 +402,14 @@ pub struct McapRecorder {
     min_interval: f64,
     /// Stage time of the stage's last logged frame [s].
     logged_at: Option<f64>,
-    /// The stage's latest frame when it was not logged: logged at the stage's end, so
-    /// that a replay always shows where a stage ends.
-    held: Option<HeldFrame>,
+    /// The stage's latest frame when it was not logged (`holding`): logged at the stage's
+    /// end, so that a replay always shows where a stage ends. Its buffers are reused.
+    held: HeldFrame,
+    holding: bool,
 }
 
 /// A frame kept for [`McapRecorder::end_stage`].
+#[derive(Default)]
 struct HeldFrame {
     step: usize,
     /// Log time [s].
@@ -475,7 +477,8 @@ impl McapRecorder {
             buf: Vec::new(),
             min_interval: if replay_rate > 0.0 { 1.0 / replay_rate } else { 0.0 },
             logged_at: None,
-            held: None,
+            held: HeldFrame::default(),
+            holding: false,
         })
     }
 
@@ -654,18 +657,16 @@ impl McapRecorder {
         let nearest = frame.clearance.and_then(|c| c.nearest);
         // 1e-9: a time step that divides the interval exactly is not lost to round-off.
         let due = stage.is_static() || self.logged_at.is_none_or(|at| frame.time - at >= self.min_interval * (1.0 - 1e-9));
+        self.holding = !due;
         if !due {
-            self.held = Some(HeldFrame {
-                step: frame.step,
-                t,
-                positions: frame.positions.to_vec(),
-                forces: frame.forces.to_vec(),
-                energy: frame.energy,
-                nearest,
-            });
+            let h = &mut self.held;
+            (h.step, h.t, h.energy, h.nearest) = (frame.step, t, frame.energy, nearest);
+            h.positions.clear();
+            h.positions.extend_from_slice(frame.positions);
+            h.forces.clear();
+            h.forces.extend_from_slice(frame.forces);
             return Ok(());
         }
-        self.held = None;
         self.logged_at = Some(frame.time);
         let ns = self.clock.step_stamp(t);
         self.nearest = nearest;
@@ -674,13 +675,16 @@ impl McapRecorder {
 
     /// Logs the stage's last frame if [`Self::record_frame`] held it back.
     fn log_held(&mut self, stage: Stage) -> Result<(), Error> {
-        if let Some(h) = self.held.take() {
-            let ns = self.clock.step_stamp(h.t);
-            self.nearest = h.nearest;
-            self.log_state(stage, h.step, ns, &h.positions, &h.forces, Some(h.energy))?;
-        }
         self.logged_at = None;
-        Ok(())
+        if !std::mem::take(&mut self.holding) {
+            return Ok(());
+        }
+        let h = std::mem::take(&mut self.held);
+        let ns = self.clock.step_stamp(h.t);
+        self.nearest = h.nearest;
+        let logged = self.log_state(stage, h.step, ns, &h.positions, &h.forces, Some(h.energy));
+        self.held = h;
+        logged
     }
 }
 
