@@ -551,7 +551,7 @@ fn paper_model_eigen_analysis() {
 /// infinitesimal rotations in its null space; the lag is what breaks it.)
 #[test]
 fn objective_damping_ignores_rigid_motion() {
-    use tsim::tsm::{block_product, objective_damping, scaled_blocks};
+    use tsim::tsm::{block_product, damping_moduli, objective_damping, scaled_blocks, taut_members};
     let cfg = paper_config();
     let mut eq = real_equilibrium(&cfg);
     for node in &mut eq.model.nodes {
@@ -563,6 +563,10 @@ fn objective_damping_ignores_rigid_motion() {
     let centre = eq.positions.iter().sum::<Vector3<f64>>() / eq.positions.len() as f64;
     let beta = 0.0052;
     let k_max = asm.states.iter().map(|s| s.stiffness.abs()).fold(0.0, f64::max);
+    let mut taut = vec![false; asm.states.len()];
+    taut_members(&eq.elements, &asm.states, &mut taut);
+    let mut moduli = vec![Default::default(); asm.states.len()];
+    damping_moduli(&eq.elements, &asm.states, &taut, &mut moduli);
     for (omega, t) in [
         (Vector3::new(0.3, -1.1, 0.7), Vector3::zeros()),
         (Vector3::zeros(), Vector3::new(2.0, -1.0, 0.5)),
@@ -575,7 +579,7 @@ fn objective_damping_ignores_rigid_motion() {
             })
             .collect();
         let (mut objective, mut paper) = (vec![0.0; dofs.len()], vec![0.0; dofs.len()]);
-        objective_damping(&eq.model, &asm.states, &dofs, &v, beta, &mut objective);
+        objective_damping(&eq.model, &asm.states, &moduli, &dofs, &v, beta, &mut objective);
         let back = nalgebra::Rotation3::new(-omega * 1e-3);
         let lagged: Vec<Vector3<f64>> = eq.positions.iter().map(|x| centre + back * (x - centre)).collect();
         let lagged = Assembly::new(&eq.model, &eq.elements, &dofs, lagged);

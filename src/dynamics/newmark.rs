@@ -1,8 +1,8 @@
 use super::Rayleigh;
 use crate::solve::{bisect, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
 use crate::tsm::{
-    assemble_objective_damping, assemble_tangents, block_product, member_damping_all, objective_damping, scaled_blocks, tangent_pattern,
-    Assembly, MemberState,
+    assemble_objective_damping, assemble_tangents, block_product, damping_moduli, member_damping_all, objective_damping, scaled_blocks,
+    tangent_pattern, taut_members, Assembly, DampingModulus, MemberState,
 };
 use nalgebra::Matrix3;
 
@@ -64,8 +64,10 @@ pub struct Integrator {
 /// open which K. `Objective` (the default) damps each member's extension rate along its
 /// current direction, scaled by its material tangent: f = β (dN/dl) l̇ e. A rigid-body
 /// motion gets no damping force, the dissipated power β (dN/dl) l̇² is never negative, and
-/// about a fixed state it is β K_0 v (K_T without its geometric part). Its Jacobian in the
-/// Newmark step is exact; it is not symmetric, so steps are factored by LU.
+/// about a fixed state it is β K_0 v (K_T without its geometric part). A tension-only
+/// member keeps the branch (taut or slack) of the step's start for dN/dl, so that the step
+/// equation stays continuous where it goes slack (`tsm::DampingModulus`). Its Jacobian in
+/// the Newmark step is exact; it is not symmetric, so steps are factored by LU.
 ///
 /// The other three apply β K_T(x)·v with K_T at some state, as the paper does. None is
 /// objective: a rigidly rotating member gets an apparent axial rate (from the lagged or
@@ -109,6 +111,10 @@ pub struct Newmark<'a> {
     /// β k per member of the βK term's states ([`scaled_blocks`]; unused for `Objective`):
     /// re-formed when those states change, not at every residual.
     damp_blocks: Vec<Matrix3<f64>>,
+    /// Per member, whether it was taut at the step's start, and its damping modulus at the
+    /// current states on that branch (`Objective` only; [`DampingModulus`]).
+    taut: Vec<bool>,
+    moduli: Vec<DampingModulus>,
     /// Energy ledger since the stage began.
     pub energy: Energy,
     /// KE + SE at the start of the stage: the balance is KE + SE + D − W − E0.
@@ -137,6 +143,8 @@ impl<'a> Newmark<'a> {
         let mut s = Newmark {
             damp_states: asm.states.clone(),
             damp_blocks: vec![Matrix3::zeros(); asm.states.len()],
+            taut: vec![true; asm.states.len()],
+            moduli: vec![DampingModulus::default(); asm.states.len()],
             asm,
             params,
             rayleigh: damping.rayleigh,
@@ -160,6 +168,7 @@ impl<'a> Newmark<'a> {
             fd_next: vec![0.0; n],
         };
         s.update_damping_blocks();
+        s.keep_branches();
         let mut fd = std::mem::take(&mut s.fd);
         s.damping_force(&s.v, &mut fd);
         s.fd = fd;
@@ -205,6 +214,22 @@ impl<'a> Newmark<'a> {
         scaled_blocks(states, self.rayleigh.beta, &mut self.damp_blocks);
     }
 
+    /// Objective damping: every member keeps its branch (taut or slack) of the current
+    /// states until the next call, at the start of a step ([`DampingModulus`]).
+    fn keep_branches(&mut self) {
+        if self.tangent == DampingTangent::Objective {
+            taut_members(self.asm.elements, &self.asm.states, &mut self.taut);
+            self.update_moduli();
+        }
+    }
+
+    /// Objective damping: the members' damping moduli at the current states.
+    fn update_moduli(&mut self) {
+        if self.tangent == DampingTangent::Objective {
+            damping_moduli(self.asm.elements, &self.asm.states, &self.taut, &mut self.moduli);
+        }
+    }
+
     /// The Rayleigh damping force α M v + the β term (per `tangent`) on the free DOFs at
     /// velocities `v` into `out`.
     fn damping_force(&self, v: &[f64], out: &mut [f64]) {
@@ -213,7 +238,7 @@ impl<'a> Newmark<'a> {
         }
         let asm = &self.asm;
         match self.tangent {
-            DampingTangent::Objective => objective_damping(asm.model, &asm.states, asm.dofs, v, self.rayleigh.beta, out),
+            DampingTangent::Objective => objective_damping(asm.model, &asm.states, &self.moduli, asm.dofs, v, self.rayleigh.beta, out),
             _ => block_product(asm.model, &self.damp_blocks, asm.dofs, v, out),
         }
     }
@@ -234,15 +259,15 @@ impl<'a> Newmark<'a> {
     /// the free directions only (a support does not move relative to the base).
     pub fn member_damping_force(&self, out: &mut [f64]) {
         out.fill(0.0);
-        let objective = self.tangent == DampingTangent::Objective;
+        let objective = (self.tangent == DampingTangent::Objective).then_some(&self.moduli[..]);
         let asm = &self.asm;
         member_damping_all(
             asm.model,
             self.damping_states(),
+            objective,
             asm.dofs,
             &self.v,
             self.rayleigh.beta,
-            objective,
             out,
         );
     }
@@ -298,6 +323,7 @@ impl<'a> Newmark<'a> {
             self.damp_states.copy_from_slice(&self.asm.states);
             self.update_damping_blocks();
         }
+        self.keep_branches();
         let n = self.mass.len();
         let t_next = self.time + dt;
         let beta = self.params.beta;
@@ -324,6 +350,7 @@ impl<'a> Newmark<'a> {
         };
         // Commit: positions, accelerations, velocities, damping force, energy ledger.
         self.asm.set_free(&trial);
+        self.update_moduli();
         if self.tangent == DampingTangent::Current {
             self.update_damping_blocks();
         }
@@ -380,6 +407,7 @@ impl Residual for StepProblem<'_, '_> {
         if nm.tangent == DampingTangent::Current {
             nm.update_damping_blocks();
         }
+        nm.update_moduli();
         nm.next_velocity(u, self.dt);
         let n = u.len();
         let mut fd = std::mem::take(&mut nm.fd_next);
@@ -412,7 +440,7 @@ impl Residual for StepProblem<'_, '_> {
         let (model, dofs) = (nm.asm.model, nm.asm.dofs);
         if nm.tangent == DampingTangent::Objective {
             assemble_tangents(model, dofs, &[(&nm.asm.states, 1.0)], k);
-            assemble_objective_damping(model, &nm.asm.states, dofs, &nm.v_next, beta_r, c_v, k);
+            assemble_objective_damping(model, &nm.asm.states, &nm.moduli, dofs, &nm.v_next, beta_r, c_v, k);
         } else {
             assemble_tangents(model, dofs, &[(&nm.asm.states, 1.0), (nm.damping_states(), beta_r * c_v)], k);
         }
@@ -560,5 +588,73 @@ mod tests {
                 assert!(omitted_size > 1.0, "{tangent:?}: ∂K_T/∂x·v only {omitted_size:e} N/m");
             });
         }
+    }
+
+    /// A slack cable snapping taut within a step, with objective damping: one free DOF, a
+    /// node of mass m on a tension-only cable (k = EA/l0, l0 = 1 m) from a fixed node,
+    /// starting slack at x = 1 − s and moving out at V with a = 0, s = ¾ VΔt.
+    ///
+    /// Newmark's predictor base = 1 − s + VΔt = 1 + VΔt/4 lies past l0, and at x = l0 the
+    /// velocity would be V − 2(VΔt − s)/Δt = V/2 > 0. Damped on its current branch, the
+    /// residual r(x) = m c_a (base − x) − [x > 1](k (x − 1) + β k v(x)) is positive for
+    /// x < 1 and, since β k Δt = 10 > 2m, negative for x > 1: it jumps over zero at l0 and
+    /// has no root; Newton cycled and the step was cut. Keeping the branch of the step's
+    /// start (slack: no damping) it is continuous with the root
+    /// x* = (m c_a base + k)/(m c_a + k), reached here to round-off (1e-12 m: a few ulp of
+    /// the coordinates and far below the 1e-8 m tolerance of Newton's increment test). The
+    /// next step starts taut and damps with β k again.
+    #[test]
+    fn a_cable_snapping_taut_keeps_its_slack_branch_for_the_step() {
+        use crate::model::{Member, Model, Node};
+        let node = |id: &str, x: f64, support: [bool; 3]| Node {
+            id: id.into(),
+            xyz: nalgebra::Vector3::new(x, 0.0, 0.0),
+            support,
+        };
+        let (ea, m, dt, v0, beta_r) = (1e4, 1.0, 0.01, 0.1, 0.1);
+        let s = 0.75 * v0 * dt;
+        let model = Model {
+            nodes: vec![node("a", 0.0, [true; 3]), node("b", 1.0 - s, [false, true, true])],
+            members: vec![Member {
+                id: "c".into(),
+                nodes: [0, 1],
+                kind: MemberKind::Cable,
+                groups: Vec::new(),
+            }],
+            node_groups: Default::default(),
+        };
+        let elements = Elements {
+            laws: vec![Arc::new(LinearElastic { ea, tension_only: true })],
+            rest: vec![1.0],
+        };
+        let dofs = DofMap::new(&model, &[]);
+        let asm = Assembly::new(&model, &elements, &dofs, model.positions());
+        let integrator = Integrator {
+            params: NewmarkParams {
+                dt,
+                max_cuts: 0,
+                ..Default::default()
+            },
+            damping: Damping {
+                rayleigh: Rayleigh { alpha: 0.0, beta: beta_r },
+                tangent: DampingTangent::Objective,
+            },
+            newton: NewtonSettings {
+                linear_solver: LinearSolverChoice::Dense,
+                ..Default::default()
+            },
+        };
+        let mut nm = Newmark::new(asm, vec![m], vec![v0], vec![0.0], &integrator);
+        assert_eq!(nm.a, [0.0], "slack at the start: no force");
+        let report = nm.advance(dt, &|_, _| ()).expect("the step converges uncut");
+        let (c_a, k) = (4.0 / (dt * dt), ea);
+        let base = 1.0 - s + v0 * dt;
+        let expected = (m * c_a * base + k) / (m * c_a + k);
+        assert!((nm.u[0] - expected).abs() < 1e-12, "x = {}, closed form {expected}", nm.u[0]);
+        assert!(report.iterations <= 3, "{report:?}");
+        assert_eq!(nm.moduli[0].stiffness, 0.0, "damped on the slack branch of the step's start");
+        // The next step starts taut: damped by β EA/l0 again.
+        nm.advance(dt, &|_, _| ()).expect("second step");
+        assert!(nm.u[0] > 1.0 && nm.moduli[0].stiffness == ea, "{:?}", nm.moduli[0]);
     }
 }

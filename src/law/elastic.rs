@@ -10,12 +10,6 @@ pub struct LinearElastic {
     pub tension_only: bool,
 }
 
-impl LinearElastic {
-    fn slack(&self, l: f64, l0: f64) -> bool {
-        self.tension_only && l < l0
-    }
-}
-
 impl ForceLaw for LinearElastic {
     fn eval(&self, l: f64, l0: f64) -> LawEval {
         if self.slack(l, l0) {
@@ -25,6 +19,14 @@ impl ForceLaw for LinearElastic {
                 curvature: 0.0,
             };
         }
+        self.eval_taut(l, l0)
+    }
+
+    fn slack(&self, l: f64, l0: f64) -> bool {
+        self.tension_only && l < l0
+    }
+
+    fn eval_taut(&self, l: f64, l0: f64) -> LawEval {
         LawEval {
             force: self.ea * (l - l0) / l0,
             stiffness: self.ea / l0,

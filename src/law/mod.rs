@@ -33,4 +33,15 @@ pub trait ForceLaw: Send + Sync + std::fmt::Debug {
     fn d_force_d_rest(&self, l: f64, l0: f64) -> f64;
     /// Short name for errors and outputs.
     fn name(&self) -> &'static str;
+    /// Whether a member of length `l` is slack: a tension-only law carries nothing there,
+    /// and its dN/dl drops to zero discontinuously at l0. Default: never.
+    fn slack(&self, _l: f64, _l0: f64) -> bool {
+        false
+    }
+    /// [`ForceLaw::eval`] on the taut branch, continued below l0 where the member is slack
+    /// (a time step's damping keeps a member's branch: `tsm::DampingModulus`). Default:
+    /// `eval`, for a law with one branch.
+    fn eval_taut(&self, l: f64, l0: f64) -> LawEval {
+        self.eval(l, l0)
+    }
 }

@@ -9,9 +9,14 @@
 //! the law's stiffness.
 
 mod assembly;
+mod damping;
 mod dofs;
 
 pub use assembly::Assembly;
+pub use damping::{
+    assemble_objective_damping, block_product, damping_moduli, member_damping_all, objective_damping, scaled_blocks, taut_members,
+    DampingModulus,
+};
 pub use dofs::DofMap;
 
 use crate::law::ForceLaw;
@@ -109,7 +114,7 @@ pub fn assemble_tangents(model: &Model, dofs: &DofMap, terms: &[(&[MemberState],
 
 /// Adds member `e`'s 6×6 block [[k, −k], [−k, k]] (k the block on its relative position)
 /// on the free DOFs of its nodes.
-fn add_member_block(dofs: &DofMap, e: usize, [a, b]: [usize; 2], k: &Matrix3<f64>, sink: &mut (impl TangentSink + ?Sized)) {
+pub(crate) fn add_member_block(dofs: &DofMap, e: usize, [a, b]: [usize; 2], k: &Matrix3<f64>, sink: &mut (impl TangentSink + ?Sized)) {
     let free = [0, 1, 2, 3, 4, 5].map(|i| dofs.free(if i < 3 { a } else { b }, i % 3));
     let block = std::array::from_fn(|r| {
         std::array::from_fn(|c| {
@@ -134,97 +139,4 @@ pub fn tangent_pattern<'a>(model: &'a Model, dofs: &'a DofMap) -> impl Iterator<
             .collect();
         free.iter().flat_map(|&r| free.iter().map(move |&c| (r, c))).collect::<Vec<_>>()
     })
-}
-
-/// The relative velocity v_b − v_a of a member's ends from free-DOF velocities `v`.
-fn relative(dofs: &DofMap, v: &[f64], [a, b]: [usize; 2]) -> Vector3<f64> {
-    let value = |n: usize, ax: usize| dofs.free(n, ax).map_or(0.0, |i| v[i]);
-    Vector3::new(value(b, 0) - value(a, 0), value(b, 1) - value(a, 1), value(b, 2) - value(a, 2))
-}
-
-/// Adds a member force `f` (on its second node; −f on its first) to the free DOFs of `out`.
-fn scatter(dofs: &DofMap, [a, b]: [usize; 2], f: &Vector3<f64>, out: &mut [f64]) {
-    for ax in 0..3 {
-        if let Some(i) = dofs.free(a, ax) {
-            out[i] -= f[ax];
-        }
-        if let Some(i) = dofs.free(b, ax) {
-            out[i] += f[ax];
-        }
-    }
-}
-
-/// out += the objective stiffness-proportional damping force of every member: an axial
-/// force β (dN/dl) l̇ along the member, l̇ = e·(v_b − v_a) its extension rate (`factor` = β).
-/// A rigid motion (v_b − v_a = ω × d) has l̇ = 0 and gets no force; the power dissipated,
-/// β (dN/dl) l̇², is positive wherever the material tangent is. For small motions about a
-/// state it is β K_0 v: K_T's geometric part is left out, which is what makes it objective.
-pub fn objective_damping(model: &Model, states: &[MemberState], dofs: &DofMap, v: &[f64], factor: f64, out: &mut [f64]) {
-    for (mem, s) in model.members.iter().zip(states) {
-        let rate = s.dir.dot(&relative(dofs, v, mem.nodes));
-        scatter(dofs, mem.nodes, &(s.dir * (factor * s.stiffness * rate)), out);
-    }
-}
-
-/// Adds ∂/∂u of the objective damping force when the velocities follow the coordinates as
-/// v = c_v u + const (Newmark: c_v = γ/(βΔt)). Per member, with d = x_b − x_a, e = d/l,
-/// P = I − e eᵀ, w = v_b − v_a, l̇ = e·w and k = dN/dl, the block on d is
-/// factor · [c_v k e eᵀ + (dk/dl) l̇ e eᵀ + k (e (P w)ᵀ + l̇ P)/l]: not symmetric (the
-/// e (P w)ᵀ term), so the step matrix needs a general (LU) factorization.
-pub fn assemble_objective_damping(
-    model: &Model,
-    states: &[MemberState],
-    dofs: &DofMap,
-    v: &[f64],
-    factor: f64,
-    c_v: f64,
-    sink: &mut (impl TangentSink + ?Sized),
-) {
-    for (e, (mem, s)) in model.members.iter().zip(states).enumerate() {
-        let w = relative(dofs, v, mem.nodes);
-        let rate = s.dir.dot(&w);
-        let ee = s.dir * s.dir.transpose();
-        let p = Matrix3::identity() - ee;
-        let k = (ee * ((c_v * s.stiffness + s.curvature * rate) * factor))
-            + (s.dir * (p * w).transpose() + p * rate) * (factor * s.stiffness / s.length);
-        add_member_block(dofs, e, mem.nodes, &k, sink);
-    }
-}
-
-/// factor · k for every member (k: [`member_block`]) into `blocks`: the member blocks of
-/// factor · K_T(states), formed once for as many products as the states stay fixed (the
-/// βK term on the last converged tangent, within a time step).
-pub fn scaled_blocks(states: &[MemberState], factor: f64, blocks: &mut [Matrix3<f64>]) {
-    for (b, s) in blocks.iter_mut().zip(states) {
-        *b = member_block(s) * factor;
-    }
-}
-
-/// out += K·v on the free DOFs, member by member (no matrix), with K's member `blocks`
-/// from [`scaled_blocks`]: the βK part of paper-style Rayleigh damping.
-pub fn block_product(model: &Model, blocks: &[Matrix3<f64>], dofs: &DofMap, v: &[f64], out: &mut [f64]) {
-    for (mem, k) in model.members.iter().zip(blocks) {
-        scatter(dofs, mem.nodes, &(k * relative(dofs, v, mem.nodes)), out);
-    }
-}
-
-/// out (over all 3n node directions, supported ones included) += the stiffness-proportional
-/// damping force of every member: [`objective_damping`]'s when `objective`, else
-/// [`block_product`]'s, with the same member forces. Each member's force is a pair
-/// (+f, −f) on its ends, so what reaches a supported direction is its share of the
-/// support's reaction.
-pub fn member_damping_all(model: &Model, states: &[MemberState], dofs: &DofMap, v: &[f64], factor: f64, objective: bool, out: &mut [f64]) {
-    for (mem, s) in model.members.iter().zip(states) {
-        let w = relative(dofs, v, mem.nodes);
-        let f = if objective {
-            s.dir * (factor * s.stiffness * s.dir.dot(&w))
-        } else {
-            member_block(s) * w * factor
-        };
-        let [a, b] = mem.nodes;
-        for ax in 0..3 {
-            out[3 * a + ax] -= f[ax];
-            out[3 * b + ax] += f[ax];
-        }
-    }
 }

@@ -1,0 +1,168 @@
+//! The stiffness-proportional term β·K of Rayleigh damping on members: the objective form
+//! β (dN/dl) l̇ e with its exact Newmark Jacobian, and the paper's β K_T v by member blocks.
+
+use super::{add_member_block, member_block, DofMap, Elements, MemberState};
+use crate::model::Model;
+use crate::solve::TangentSink;
+use nalgebra::{Matrix3, Vector3};
+
+/// The material tangent that objective damping scales a member's extension rate by:
+/// dN/dl and d²N/dl² on the branch of its law the member was on at the step's start.
+///
+/// Why not simply the current dN/dl: a tension-only member's dN/dl jumps from EA/l0 to 0
+/// where it goes slack, and with it the damping force β (dN/dl) l̇, by β (EA/l0) l̇. The
+/// Newmark step's residual is then discontinuous in the coordinates and may have no root
+/// near the jump: Newton cycles between the two sides (a 47 × 47 steel-cable grid's
+/// deployment alternated between max|r| = 302 N and 215 N for 50 iterations, until the
+/// step was cut; one step in five needed three cuts). Keeping each member's branch for a
+/// step makes the residual smooth within it; a member that goes slack during a step is
+/// damped on its taut branch until the step ends, and one that snaps taut is undamped
+/// until then. Both are O(Δt) at the event only, the order any time integrator has at the
+/// kink itself. The modulus depends on lengths alone, so the force stays objective, and it
+/// is never negative, so dissipation is not either.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DampingModulus {
+    /// dN/dl [N/m].
+    pub stiffness: f64,
+    /// d²N/dl² [N/m²].
+    pub curvature: f64,
+}
+
+/// Which members are on their taut branch (not slack) at `states`: the branch each keeps for
+/// a step's damping ([`DampingModulus`]).
+pub fn taut_members(elements: &Elements, states: &[MemberState], taut: &mut [bool]) {
+    for (((t, s), law), &l0) in taut.iter_mut().zip(states).zip(&elements.laws).zip(&elements.rest) {
+        *t = !law.slack(s.length, l0);
+    }
+}
+
+/// Each member's damping modulus at `states` on the branch `taut` says.
+pub fn damping_moduli(elements: &Elements, states: &[MemberState], taut: &[bool], moduli: &mut [DampingModulus]) {
+    for (e, (m, s)) in moduli.iter_mut().zip(states).enumerate() {
+        let (law, l0) = (&elements.laws[e], elements.rest[e]);
+        *m = if !taut[e] {
+            DampingModulus::default()
+        } else if law.slack(s.length, l0) {
+            let eval = law.eval_taut(s.length, l0);
+            DampingModulus {
+                stiffness: eval.stiffness,
+                curvature: eval.curvature,
+            }
+        } else {
+            DampingModulus {
+                stiffness: s.stiffness,
+                curvature: s.curvature,
+            }
+        };
+    }
+}
+
+/// The relative velocity v_b − v_a of a member's ends from free-DOF velocities `v`.
+fn relative(dofs: &DofMap, v: &[f64], [a, b]: [usize; 2]) -> Vector3<f64> {
+    let value = |n: usize, ax: usize| dofs.free(n, ax).map_or(0.0, |i| v[i]);
+    Vector3::new(value(b, 0) - value(a, 0), value(b, 1) - value(a, 1), value(b, 2) - value(a, 2))
+}
+
+/// Adds a member force `f` (on its second node; −f on its first) to the free DOFs of `out`.
+fn scatter(dofs: &DofMap, [a, b]: [usize; 2], f: &Vector3<f64>, out: &mut [f64]) {
+    for ax in 0..3 {
+        if let Some(i) = dofs.free(a, ax) {
+            out[i] -= f[ax];
+        }
+        if let Some(i) = dofs.free(b, ax) {
+            out[i] += f[ax];
+        }
+    }
+}
+
+/// out += the objective stiffness-proportional damping force of every member: an axial
+/// force β k l̇ along the member, l̇ = e·(v_b − v_a) its extension rate, k its
+/// [`DampingModulus`] (`factor` = β). A rigid motion (v_b − v_a = ω × d) has l̇ = 0 and gets
+/// no force; the power dissipated, β k l̇², is never negative. For small motions about a
+/// state it is β K_0 v: K_T's geometric part is left out, which is what makes it objective.
+pub fn objective_damping(
+    model: &Model,
+    states: &[MemberState],
+    moduli: &[DampingModulus],
+    dofs: &DofMap,
+    v: &[f64],
+    factor: f64,
+    out: &mut [f64],
+) {
+    for ((mem, s), m) in model.members.iter().zip(states).zip(moduli) {
+        let rate = s.dir.dot(&relative(dofs, v, mem.nodes));
+        scatter(dofs, mem.nodes, &(s.dir * (factor * m.stiffness * rate)), out);
+    }
+}
+
+/// Adds ∂/∂u of the objective damping force when the velocities follow the coordinates as
+/// v = c_v u + const (Newmark: c_v = γ/(βΔt)). Per member, with d = x_b − x_a, e = d/l,
+/// P = I − e eᵀ, w = v_b − v_a, l̇ = e·w and k its [`DampingModulus`], the block on d is
+/// factor · [c_v k e eᵀ + (dk/dl) l̇ e eᵀ + k (e (P w)ᵀ + l̇ P)/l]: not symmetric (the
+/// e (P w)ᵀ term), so the step matrix needs a general (LU) factorization.
+#[allow(clippy::too_many_arguments)]
+pub fn assemble_objective_damping(
+    model: &Model,
+    states: &[MemberState],
+    moduli: &[DampingModulus],
+    dofs: &DofMap,
+    v: &[f64],
+    factor: f64,
+    c_v: f64,
+    sink: &mut (impl TangentSink + ?Sized),
+) {
+    for (e, ((mem, s), m)) in model.members.iter().zip(states).zip(moduli).enumerate() {
+        let w = relative(dofs, v, mem.nodes);
+        let rate = s.dir.dot(&w);
+        let ee = s.dir * s.dir.transpose();
+        let p = Matrix3::identity() - ee;
+        let k = (ee * ((c_v * m.stiffness + m.curvature * rate) * factor))
+            + (s.dir * (p * w).transpose() + p * rate) * (factor * m.stiffness / s.length);
+        add_member_block(dofs, e, mem.nodes, &k, sink);
+    }
+}
+
+/// factor · k for every member (k: [`member_block`]) into `blocks`: the member blocks of
+/// factor · K_T(states), formed once for as many products as the states stay fixed (the
+/// βK term on the last converged tangent, within a time step).
+pub fn scaled_blocks(states: &[MemberState], factor: f64, blocks: &mut [Matrix3<f64>]) {
+    for (b, s) in blocks.iter_mut().zip(states) {
+        *b = member_block(s) * factor;
+    }
+}
+
+/// out += K·v on the free DOFs, member by member (no matrix), with K's member `blocks`
+/// from [`scaled_blocks`]: the βK part of paper-style Rayleigh damping.
+pub fn block_product(model: &Model, blocks: &[Matrix3<f64>], dofs: &DofMap, v: &[f64], out: &mut [f64]) {
+    for (mem, k) in model.members.iter().zip(blocks) {
+        scatter(dofs, mem.nodes, &(k * relative(dofs, v, mem.nodes)), out);
+    }
+}
+
+/// out (over all 3n node directions, supported ones included) += the stiffness-proportional
+/// damping force of every member: [`objective_damping`]'s with `objective` moduli, else
+/// [`block_product`]'s, with the same member forces. Each member's force is a pair
+/// (+f, −f) on its ends, so what reaches a supported direction is its share of the
+/// support's reaction.
+pub fn member_damping_all(
+    model: &Model,
+    states: &[MemberState],
+    objective: Option<&[DampingModulus]>,
+    dofs: &DofMap,
+    v: &[f64],
+    factor: f64,
+    out: &mut [f64],
+) {
+    for (e, (mem, s)) in model.members.iter().zip(states).enumerate() {
+        let w = relative(dofs, v, mem.nodes);
+        let f = match objective {
+            Some(moduli) => s.dir * (factor * moduli[e].stiffness * s.dir.dot(&w)),
+            None => member_block(s) * w * factor,
+        };
+        let [a, b] = mem.nodes;
+        for ax in 0..3 {
+            out[3 * a + ax] -= f[ax];
+            out[3 * b + ax] += f[ax];
+        }
+    }
+}
