@@ -275,6 +275,37 @@ impl SparseSolver {
 }
 
 impl SparseSolver {
+    /// The symbolic Cholesky's figures as JSON fields (for benchmarks): nnz(L) and, for a
+    /// supernodal factor, its supernodes' widths and the flops of one numeric factorization
+    /// (per supernode of width w with r rows below: w³/3 + r w² + r² w).
+    pub fn stats(&self) -> String {
+        let nnz_l = self.symbolic.len_val();
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(_) => format!("\"nnz_l\": {nnz_l}, \"supernodal\": false"),
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                let (b, e, p) = (s.supernode_begin(), s.supernode_end(), s.col_ptr_for_row_idx());
+                let mut flops = 0.0;
+                let mut widths = Vec::new();
+                for k in 0..s.n_supernodes() {
+                    let w = (e[k] - b[k]) as f64;
+                    let r = (p[k + 1] - p[k]) as f64;
+                    widths.push(w as usize);
+                    flops += w * w * w / 3.0 + r * w * w + r * r * w;
+                }
+                widths.sort_unstable();
+                let mean = widths.iter().sum::<usize>() as f64 / widths.len() as f64;
+                format!(
+                    "\"nnz_l\": {nnz_l}, \"supernodes\": {}, \"mean_width\": {mean:.1}, \"median_width\": {}, \"max_width\": {}, \"flops\": {flops:.3e}",
+                    widths.len(),
+                    widths[widths.len() / 2],
+                    widths.last().copied().unwrap_or(0)
+                )
+            }
+        }
+    }
+}
+
+impl SparseSolver {
     fn slot(&self, row: usize, col: usize) -> usize {
         let (lo, hi) = (self.col_ptr[col], self.col_ptr[col + 1]);
         lo + self.row_idx[lo..hi].binary_search(&row).expect("entry inside the tangent pattern")

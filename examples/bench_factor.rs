@@ -1,0 +1,78 @@
+//! Sparse factorization benchmark (not a test): a matrix on the tangent pattern of an
+//! n × n quadruplex grid (member blocks k e eᵀ plus a mass-like diagonal, so neither
+//! factorization pivots), factored by tsim's `SparseSolver` with Cholesky and with LU.
+//! Prints one JSON line per factorization kind: DOF, symbolic time, median factor and
+//! solve times, and the Cholesky factor's size (`SparseSolver::stats`).
+//!
+//! Usage: bench_factor N [REPEATS]
+
+use std::time::Instant;
+use tsim::model::grid::GridSpec;
+use tsim::solve::{SparseSolver, TangentSink, TangentSolver};
+use tsim::tsm::{tangent_pattern, DofMap};
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let n: usize = args.get(1).and_then(|s| s.parse().ok()).expect("usage: bench_factor N [REPEATS]");
+    let repeats: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(3);
+    let spec = GridSpec {
+        nx: n,
+        ny: n,
+        cell: 2.0,
+        depth: 1.0,
+        supports: Default::default(),
+    };
+    let model = spec.build();
+    let dofs = DofMap::new(&model, &[]);
+    let x = model.positions();
+    let t = Instant::now();
+    let mut solver = SparseSolver::new(dofs.len(), tangent_pattern(&model, &dofs));
+    let symbolic = t.elapsed().as_secs_f64();
+    let fill = |solver: &mut SparseSolver| {
+        solver.clear();
+        for (e, m) in model.members.iter().enumerate() {
+            let d = (x[m.nodes[1]] - x[m.nodes[0]]).normalize();
+            let k = d * d.transpose() * 1e6 + nalgebra::Matrix3::identity() * 1e3;
+            let free = [0, 1, 2, 3, 4, 5].map(|i| dofs.free(m.nodes[i / 3], i % 3));
+            let block = std::array::from_fn(|r| {
+                std::array::from_fn(|c| {
+                    if (r < 3) == (c < 3) {
+                        k[(r % 3, c % 3)]
+                    } else {
+                        -k[(r % 3, c % 3)]
+                    }
+                })
+            });
+            solver.add_element(e, &free, &block);
+        }
+        for i in 0..dofs.len() {
+            solver.add(i, i, 1e5);
+        }
+    };
+    let mut rhs = vec![1.0; dofs.len()];
+    for symmetric in [true, false] {
+        let (mut factor, mut solve) = (Vec::new(), Vec::new());
+        for _ in 0..repeats {
+            fill(&mut solver);
+            let t = Instant::now();
+            solver.factor(symmetric).expect("factorizable");
+            factor.push(t.elapsed().as_secs_f64());
+            rhs.fill(1.0);
+            let t = Instant::now();
+            solver.solve(&mut rhs).expect("solvable");
+            solve.push(t.elapsed().as_secs_f64());
+        }
+        let med = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        println!(
+            "{{\"n\": {n}, \"dof\": {}, \"kind\": \"{}\", \"symbolic_s\": {symbolic:.3}, \"factor_s\": {:.4}, \"solve_s\": {:.4}, {}}}",
+            dofs.len(),
+            if symmetric { "cholesky" } else { "lu" },
+            med(&mut factor),
+            med(&mut solve),
+            solver.stats()
+        );
+    }
+}
