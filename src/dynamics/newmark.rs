@@ -86,6 +86,15 @@ pub enum DampingTangent {
     Current,
 }
 
+/// The work of step attempts whose Newton solve failed, so that the step was cut in
+/// halves: no converged report counts it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Retried {
+    pub attempts: usize,
+    pub iterations: usize,
+    pub factorizations: usize,
+}
+
 /// State and integrator of one time-stepping stage on the free DOFs. Every buffer a step
 /// needs is allocated here, once: a step allocates nothing.
 pub struct Newmark<'a> {
@@ -117,6 +126,8 @@ pub struct Newmark<'a> {
     moduli: Vec<DampingModulus>,
     /// Energy ledger since the stage began.
     pub energy: Energy,
+    /// Failed step attempts since the stage began.
+    pub retried: Retried,
     /// KE + SE at the start of the stage: the balance is KE + SE + D − W − E0.
     pub initial_energy: f64,
     pub time: f64,
@@ -157,6 +168,7 @@ impl<'a> Newmark<'a> {
             f: f0,
             fd: vec![0.0; n],
             energy: Energy::default(),
+            retried: Retried::default(),
             initial_energy: 0.0,
             time: 0.0,
             ws,
@@ -338,10 +350,14 @@ impl<'a> Newmark<'a> {
         }
         let settings = self.newton;
         let result = newton(&mut StepProblem { nm: self, dt }, &mut trial, &settings, length, &mut ws);
+        let (iterations, factorizations) = ws.last_effort();
         self.ws = Some(ws);
         let report = match result {
             Ok(report) => report,
             Err(e) => {
+                self.retried.attempts += 1;
+                self.retried.iterations += iterations;
+                self.retried.factorizations += factorizations;
                 self.trial = trial;
                 let Newmark { asm, u, .. } = self;
                 asm.set_free(u);
@@ -605,6 +621,43 @@ mod tests {
     /// next step starts taut and damps with β k again.
     #[test]
     fn a_cable_snapping_taut_keeps_its_slack_branch_for_the_step() {
+        snapping_cable(DampingTangent::Objective, 0, |mut nm, (ea, m, dt, v0, s)| {
+            assert_eq!(nm.a, [0.0], "slack at the start: no force");
+            let report = nm.advance(dt, &|_, _| ()).expect("the step converges uncut");
+            let (c_a, k) = (4.0 / (dt * dt), ea);
+            let base = 1.0 - s + v0 * dt;
+            let expected = (m * c_a * base + k) / (m * c_a + k);
+            assert!((nm.u[0] - expected).abs() < 1e-12, "x = {}, closed form {expected}", nm.u[0]);
+            assert!(report.iterations <= 3, "{report:?}");
+            assert_eq!(nm.moduli[0].stiffness, 0.0, "damped on the slack branch of the step's start");
+            // The next step starts taut: damped by β EA/l0 again.
+            nm.advance(dt, &|_, _| ()).expect("second step");
+            assert!(nm.u[0] > 1.0 && nm.moduli[0].stiffness == ea, "{:?}", nm.moduli[0]);
+            assert_eq!(nm.retried, Retried::default());
+        });
+    }
+
+    /// The same snap with the paper's β K_T(x)·v at the current iterate, whose K_T jumps
+    /// where the cable goes taut: the whole step has no root and is cut; the failed
+    /// attempts' work is kept in `retried` (each ran to the iteration cap, 50).
+    #[test]
+    fn failed_step_attempts_are_counted() {
+        snapping_cable(DampingTangent::Current, 6, |mut nm, (_, _, dt, _, _)| {
+            let report = nm.advance(dt, &|_, _| ()).expect("the step converges in parts");
+            let r = nm.retried;
+            assert!(r.attempts >= 1, "{r:?}");
+            assert!(
+                r.iterations >= 50 * r.attempts && r.factorizations >= r.attempts,
+                "{r:?}, {report:?}"
+            );
+        });
+    }
+
+    /// One free DOF: a node of mass m on a tension-only cable (k = EA/l0, l0 = 1 m) from a
+    /// fixed node, starting slack at x = 1 − s and moving out at V with a = 0,
+    /// s = ¾ VΔt, with β-only Rayleigh damping by `tangent`; `run` gets the integrator and
+    /// (EA, m, Δt, V, s).
+    fn snapping_cable(tangent: DampingTangent, max_cuts: u32, run: impl FnOnce(Newmark, (f64, f64, f64, f64, f64))) {
         use crate::model::{Member, Model, Node};
         let node = |id: &str, x: f64, support: [bool; 3]| Node {
             id: id.into(),
@@ -632,29 +685,18 @@ mod tests {
         let integrator = Integrator {
             params: NewmarkParams {
                 dt,
-                max_cuts: 0,
+                max_cuts,
                 ..Default::default()
             },
             damping: Damping {
                 rayleigh: Rayleigh { alpha: 0.0, beta: beta_r },
-                tangent: DampingTangent::Objective,
+                tangent,
             },
             newton: NewtonSettings {
                 linear_solver: LinearSolverChoice::Dense,
                 ..Default::default()
             },
         };
-        let mut nm = Newmark::new(asm, vec![m], vec![v0], vec![0.0], &integrator);
-        assert_eq!(nm.a, [0.0], "slack at the start: no force");
-        let report = nm.advance(dt, &|_, _| ()).expect("the step converges uncut");
-        let (c_a, k) = (4.0 / (dt * dt), ea);
-        let base = 1.0 - s + v0 * dt;
-        let expected = (m * c_a * base + k) / (m * c_a + k);
-        assert!((nm.u[0] - expected).abs() < 1e-12, "x = {}, closed form {expected}", nm.u[0]);
-        assert!(report.iterations <= 3, "{report:?}");
-        assert_eq!(nm.moduli[0].stiffness, 0.0, "damped on the slack branch of the step's start");
-        // The next step starts taut: damped by β EA/l0 again.
-        nm.advance(dt, &|_, _| ()).expect("second step");
-        assert!(nm.u[0] > 1.0 && nm.moduli[0].stiffness == ea, "{:?}", nm.moduli[0]);
+        run(Newmark::new(asm, vec![m], vec![v0], vec![0.0], &integrator), (ea, m, dt, v0, s));
     }
 }

@@ -102,6 +102,8 @@ pub struct NewtonWorkspace {
     /// The potential at the start and after each iteration of the last solve, for
     /// problems that have one [J].
     pub energies: Vec<f64>,
+    /// Factorizations of the last solve, so far (a failed solve's too: [`Self::last_effort`]).
+    factorizations: usize,
     /// The Newton direction, a trial point of the line search and its correction.
     d: Vec<f64>,
     trial: Vec<f64>,
@@ -132,6 +134,7 @@ impl NewtonWorkspace {
             factored: false,
             history: Vec::with_capacity(64),
             energies: Vec::with_capacity(64),
+            factorizations: 0,
             d: vec![0.0; n],
             trial: vec![0.0; n],
             correction: vec![0.0; n],
@@ -142,6 +145,12 @@ impl NewtonWorkspace {
     /// the problem changes beyond what reuse can absorb, e.g. a new time step size).
     pub fn invalidate(&mut self) {
         self.factored = false;
+    }
+
+    /// Iterations and factorizations of the last solve, a failed one's included: the work a
+    /// step cut in halves spent before it was cut, which no converged report shows.
+    pub fn last_effort(&self) -> (usize, usize) {
+        (self.history.len().saturating_sub(1), self.factorizations)
     }
 }
 
@@ -349,7 +358,7 @@ fn iterate(
     ws: &mut NewtonWorkspace,
 ) -> Result<NewtonReport, SolveError> {
     let mut increment = 0.0;
-    let mut factorizations = 0;
+    ws.factorizations = 0;
     // max|r| before the last increment (∞ at the start: a held factorization gets a try).
     let mut previous = f64::INFINITY;
     let increment_tolerance = settings.displacement_tolerance * length;
@@ -380,7 +389,7 @@ fn iterate(
         if res <= tolerance && (iteration == 0 || increment <= increment_tolerance || stalled) {
             return Ok(NewtonReport {
                 iterations: iteration,
-                factorizations,
+                factorizations: ws.factorizations,
                 residual: res,
             });
         }
@@ -399,10 +408,10 @@ fn iterate(
             ws.solver.clear();
             problem.tangent(&mut *ws.solver);
             if ws.minimize && problem.symmetric() && energy.is_some() {
-                factorizations += shifted_cholesky(ws, scale.force / length)?;
+                ws.factorizations += shifted_cholesky(ws, scale.force / length)?;
             } else {
+                ws.factorizations += 1;
                 ws.solver.factor(problem.symmetric())?;
-                factorizations += 1;
             }
             ws.factored = true;
         }
@@ -416,7 +425,7 @@ fn iterate(
                 let (moved, e, corrections) = line_search(problem, u, e0, ws)?;
                 stalled = e0 - e <= ENERGY_ROUNDOFF * e0.abs() && moved >= 0.5 * last_moved;
                 (increment, last_moved) = (moved, moved);
-                factorizations += corrections;
+                ws.factorizations += corrections;
                 energy = Some(e);
                 ws.energies.push(e);
             }

@@ -74,6 +74,15 @@ pub struct TransientSummary {
     pub newton_iterations: usize,
     /// Tangent factorizations (fewer than iterations where they are reused).
     pub factorizations: usize,
+    /// Steps cut in halves because a Newton solve failed; `failed_iterations` and
+    /// `failed_factorizations` are the failed attempts' work, which `newton_iterations`
+    /// and `factorizations` (the converged sub-steps') leave out.
+    #[serde(default)]
+    pub cut_steps: usize,
+    #[serde(default)]
+    pub failed_iterations: usize,
+    #[serde(default)]
+    pub failed_factorizations: usize,
     pub max_kinetic: f64,
     pub final_kinetic: f64,
     /// max over steps of |KE + SE + D − W − E0| [J].
@@ -240,6 +249,7 @@ impl Transient {
         let mut mechanical = mechanical_energy(&nm.energy, load_end.1);
         for step in 1..=steps {
             let time = step as f64 * dt;
+            let failed_before = nm.retried.attempts;
             let report = nm
                 .advance(dt, &load_free)
                 .map_err(solve_error(name, Some(step), Some(time), structure, &dofs))?;
@@ -254,6 +264,7 @@ impl Transient {
             }
             summary.newton_iterations += report.iterations;
             summary.factorizations += report.factorizations;
+            summary.cut_steps += usize::from(nm.retried.attempts > failed_before);
             summary.add_step(&nm, time, load_end, dt, &mut mechanical);
             track(&nm.asm.x, time);
             if step % settings.every == 0 || step == steps {
@@ -265,6 +276,7 @@ impl Transient {
         recorder.end_stage(self.stage).map_err(record_error(name))?;
         summary.equilibrium = frames.check.into();
         summary.final_kinetic = nm.energy.kinetic;
+        (summary.failed_iterations, summary.failed_factorizations) = (nm.retried.iterations, nm.retried.factorizations);
         summary.settle_time = settled_since;
         summary.wall_seconds = started.elapsed().as_secs_f64();
         Ok((final_state(&nm, &dofs), summary))
