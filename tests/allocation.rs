@@ -112,8 +112,11 @@ fn step_allocations(solver: LinearSolverChoice, loaded: bool) -> Vec<u64> {
 }
 
 /// After the first step (which fills the sparse solver's cached element slots and may
-/// take the solver's first factorization), no step allocates. The launch load acts during
-/// the first 50 steps and then stops, so both regimes are covered; a run with time
+/// take the solver's first factorization), no step allocates, but for one: the sparse
+/// solver sets up its LU on first need (its symbolic analysis and storage), and with
+/// objective damping that is the first step whose Jacobian's skew part is too large for
+/// Cholesky on its symmetric part, not necessarily the first step. The launch load acts
+/// during the first 50 steps and then stops, so both regimes are covered; a run with time
 /// functions and ground motion (dense solver: the load evaluation is solver-independent)
 /// allocates nothing either.
 #[test]
@@ -135,8 +138,9 @@ fn newmark_steps_do_not_allocate() {
             "{solver:?} (loaded: {loaded}): first step {} allocations, later steps {allocating:?}",
             per_step[0]
         );
+        let lu_setup = usize::from(solver == LinearSolverChoice::Sparse);
         assert!(
-            allocating.is_empty(),
+            allocating.len() <= lu_setup,
             "{solver:?} (loaded: {loaded}): (step, allocations) {allocating:?}"
         );
     }

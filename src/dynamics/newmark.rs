@@ -1,8 +1,10 @@
 use super::Rayleigh;
-use crate::solve::{bisect, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
+use crate::solve::{
+    bisect, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink, REUSE_CONTRACTION,
+};
 use crate::tsm::{
     assemble_objective_damping, assemble_tangents, block_product, damping_moduli, member_damping_all, objective_damping, scaled_blocks,
-    tangent_pattern, taut_members, Assembly, DampingModulus, MemberState,
+    skew_bound, tangent_pattern, taut_members, Assembly, DampingModulus, MemberState,
 };
 use nalgebra::Matrix3;
 
@@ -67,7 +69,8 @@ pub struct Integrator {
 /// about a fixed state it is β K_0 v (K_T without its geometric part). A tension-only
 /// member keeps the branch (taut or slack) of the step's start for dN/dl, so that the step
 /// equation stays continuous where it goes slack (`tsm::DampingModulus`). Its Jacobian in
-/// the Newmark step is exact; it is not symmetric, so steps are factored by LU.
+/// the Newmark step is exact and not symmetric, so steps are factored by LU, or by
+/// Cholesky on its symmetric part where the skew part is small against the mass term.
 ///
 /// The other three apply β K_T(x)·v with K_T at some state, as the paper does. None is
 /// objective: a rigidly rotating member gets an apparent axial rate (from the lagged or
@@ -94,6 +97,20 @@ pub struct Retried {
     pub iterations: usize,
     pub factorizations: usize,
 }
+
+/// Largest estimated contraction per Newton iteration, ‖S‖/λ_min, for which a step with
+/// objective damping is solved with the symmetric part of its Jacobian (Cholesky) instead of
+/// the whole (LU); S is the skew part ([`skew_bound`], a Gershgorin bound) and
+/// λ_min ≥ min m (1/(βΔt²) + α γ/(βΔt)), the step matrix's mass term (K_T's part taken as
+/// non-negative). The same contraction a held factorization must show to be kept
+/// ([`REUSE_CONTRACTION`]): an iteration matrix that is at least that close to the Jacobian
+/// is as good as a reused one. The residual is exact, so converged states meet the same
+/// tolerances; where the iteration converges more slowly than estimated (a step through an
+/// unstable state), a step that fails is cut, which shrinks the estimate 4-fold per halving.
+/// Measured (bench/pipeline.md): a 47 × 47 steel-cable grid deploying estimates 0.7–1.2e-2
+/// and takes the same 202 Newton iterations for 50 steps either way, in 4.8 s instead of
+/// 11.5 s; the paper's deployment, 36 512 iterations instead of 36 925.
+const SYMMETRIC_CONTRACTION: f64 = REUSE_CONTRACTION;
 
 /// State and integrator of one time-stepping stage on the free DOFs. Every buffer a step
 /// needs is allocated here, once: a step allocates nothing.
@@ -124,6 +141,12 @@ pub struct Newmark<'a> {
     /// current states on that branch (`Objective` only; [`DampingModulus`]).
     taut: Vec<bool>,
     moduli: Vec<DampingModulus>,
+    /// Objective damping: whether the step matrix last assembled is the Jacobian's symmetric
+    /// part ([`SYMMETRIC_CONTRACTION`]), the largest estimated contraction for which it may
+    /// be, and a per-node buffer of the estimate.
+    symmetric_step: bool,
+    symmetric_below: f64,
+    node_skew: Vec<f64>,
     /// Energy ledger since the stage began.
     pub energy: Energy,
     /// Failed step attempts since the stage began.
@@ -156,6 +179,9 @@ impl<'a> Newmark<'a> {
             damp_blocks: vec![Matrix3::zeros(); asm.states.len()],
             taut: vec![true; asm.states.len()],
             moduli: vec![DampingModulus::default(); asm.states.len()],
+            symmetric_step: false,
+            symmetric_below: SYMMETRIC_CONTRACTION,
+            node_skew: vec![0.0; asm.model.node_count()],
             asm,
             params,
             rayleigh: damping.rayleigh,
@@ -451,12 +477,25 @@ impl Residual for StepProblem<'_, '_> {
     /// for the paper-style variants, the exact objective-damping block otherwise.
     fn tangent(&mut self, k: &mut dyn TangentSink) {
         let (c_a, c_v) = self.coefficients();
-        let nm = &*self.nm;
+        let nm = &mut *self.nm;
         let (alpha_r, beta_r) = (nm.rayleigh.alpha, nm.rayleigh.beta);
         let (model, dofs) = (nm.asm.model, nm.asm.dofs);
         if nm.tangent == DampingTangent::Objective {
+            let skew = skew_bound(model, &nm.asm.states, &nm.moduli, dofs, &nm.v_next, beta_r, &mut nm.node_skew);
+            let mass_term = nm.mass.iter().fold(f64::INFINITY, |m, &mi| m.min(mi)) * (c_a + alpha_r * c_v);
+            nm.symmetric_step = skew <= nm.symmetric_below * mass_term;
             assemble_tangents(model, dofs, &[(&nm.asm.states, 1.0)], k);
-            assemble_objective_damping(model, &nm.asm.states, &nm.moduli, dofs, &nm.v_next, beta_r, c_v, k);
+            assemble_objective_damping(
+                model,
+                &nm.asm.states,
+                &nm.moduli,
+                dofs,
+                &nm.v_next,
+                beta_r,
+                c_v,
+                nm.symmetric_step,
+                k,
+            );
         } else {
             assemble_tangents(model, dofs, &[(&nm.asm.states, 1.0), (nm.damping_states(), beta_r * c_v)], k);
         }
@@ -465,9 +504,10 @@ impl Residual for StepProblem<'_, '_> {
         }
     }
 
-    /// Objective damping's block is not symmetric.
+    /// Objective damping's block is not symmetric, unless the step matrix is its symmetric
+    /// part ([`SYMMETRIC_CONTRACTION`]).
     fn symmetric(&self) -> bool {
-        self.nm.tangent != DampingTangent::Objective || self.nm.rayleigh.beta == 0.0
+        self.nm.tangent != DampingTangent::Objective || self.nm.rayleigh.beta == 0.0 || self.nm.symmetric_step
     }
 }
 
@@ -543,7 +583,10 @@ mod tests {
     /// off the predictor, for every damping tangent. `Current` leaves out ∂K_T/∂x · v
     /// (the term is not symmetric, and the symmetric solvers would need LU for it); the
     /// test computes that term independently, by central differences of the βK product at
-    /// frozen velocities, and checks that it is exactly what is missing.
+    /// frozen velocities, and checks that it is exactly what is missing. `Objective` is
+    /// checked twice: exact (LU), and as the Jacobian's symmetric part ½ (J + Jᵀ), which
+    /// it assembles where the skew part is small ([`SYMMETRIC_CONTRACTION`]); the skew part
+    /// must be large enough here to tell the two apart.
     ///
     /// Tolerance: h = 1e-6 m; the truncation error h²/6 · |∂³r| is below 1e-9 N/m here,
     /// the round-off ε |r| / h with |r| ≲ 1e5 N (inertia m/(βΔt²) · u, u ~ 3 m) is ~2e-5
@@ -552,13 +595,15 @@ mod tests {
     /// shows at the size of the mass or damping terms.
     #[test]
     fn step_jacobian_matches_finite_differences() {
-        for tangent in [
-            DampingTangent::Objective,
-            DampingTangent::Initial,
-            DampingTangent::LastConverged,
-            DampingTangent::Current,
+        for (tangent, symmetric_below) in [
+            (DampingTangent::Objective, 0.0),
+            (DampingTangent::Objective, f64::INFINITY),
+            (DampingTangent::Initial, 0.0),
+            (DampingTangent::LastConverged, 0.0),
+            (DampingTangent::Current, 0.0),
         ] {
             moving_prism(tangent, |nm| {
+                nm.symmetric_below = symmetric_below;
                 let n = nm.mass.len();
                 let dt = 0.01;
                 let u: Vec<f64> = nm.trial.iter().enumerate().map(|(i, t)| t + 1e-3 * ((i * 7) % 5) as f64).collect();
@@ -567,11 +612,14 @@ mod tests {
                 problem.residual(&u, &mut r);
                 let mut k = Mat::<f64>::zeros(n, n);
                 problem.tangent(&mut k);
+                let symmetrized = problem.symmetric() && tangent == DampingTangent::Objective;
+                assert_eq!(symmetrized, symmetric_below > 0.0, "{tangent:?}");
                 let v_frozen = problem.nm.v_next.clone();
                 let mut blocks = problem.nm.damp_blocks.clone();
                 let h = 1e-6;
                 let (mut rp, mut rm, mut gp, mut gm) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-                let mut worst: f64 = 0.0;
+                // The expected tangent, column by column, and the largest omitted term.
+                let mut expected = Mat::<f64>::zeros(n, n);
                 let mut omitted_size: f64 = 0.0;
                 for j in 0..n {
                     let (mut up, mut um) = (u.clone(), u.clone());
@@ -591,14 +639,25 @@ mod tests {
                         let exact = -(rp[i] - rm[i]) / (2.0 * h);
                         let omitted = (gp[i] - gm[i]) / (2.0 * h);
                         omitted_size = omitted_size.max(omitted.abs());
-                        let expected = if tangent == DampingTangent::Current {
+                        expected[(i, j)] = if tangent == DampingTangent::Current {
                             exact - omitted
                         } else {
                             exact
                         };
-                        worst = worst.max((k[(i, j)] - expected).abs());
                     }
                 }
+                let mut skew: f64 = 0.0;
+                if symmetrized {
+                    let whole = expected.clone();
+                    for (i, j) in (0..n).flat_map(|i| (0..n).map(move |j| (i, j))) {
+                        expected[(i, j)] = 0.5 * (whole[(i, j)] + whole[(j, i)]);
+                        skew = skew.max((whole[(i, j)] - expected[(i, j)]).abs());
+                    }
+                    assert!(skew > 1.0, "the skew part is only {skew:e} N/m");
+                }
+                let worst = (0..n)
+                    .flat_map(|i| (0..n).map(move |j| (i, j)))
+                    .fold(0.0_f64, |w, (i, j)| w.max((k[(i, j)] - expected[(i, j)]).abs()));
                 assert!(worst < 1e-3, "{tangent:?}: tangent differs from −∂r/∂u by {worst:e} N/m");
                 // The omitted term is large enough that the check above tells it apart.
                 assert!(omitted_size > 1.0, "{tangent:?}: ∂K_T/∂x·v only {omitted_size:e} N/m");
@@ -606,19 +665,6 @@ mod tests {
         }
     }
 
-    /// A slack cable snapping taut within a step, with objective damping: one free DOF, a
-    /// node of mass m on a tension-only cable (k = EA/l0, l0 = 1 m) from a fixed node,
-    /// starting slack at x = 1 − s and moving out at V with a = 0, s = ¾ VΔt.
-    ///
-    /// Newmark's predictor base = 1 − s + VΔt = 1 + VΔt/4 lies past l0, and at x = l0 the
-    /// velocity would be V − 2(VΔt − s)/Δt = V/2 > 0. Damped on its current branch, the
-    /// residual r(x) = m c_a (base − x) − [x > 1](k (x − 1) + β k v(x)) is positive for
-    /// x < 1 and, since β k Δt = 10 > 2m, negative for x > 1: it jumps over zero at l0 and
-    /// has no root; Newton cycled and the step was cut. Keeping the branch of the step's
-    /// start (slack: no damping) it is continuous with the root
-    /// x* = (m c_a base + k)/(m c_a + k), reached here to round-off (1e-12 m: a few ulp of
-    /// the coordinates and far below the 1e-8 m tolerance of Newton's increment test). The
-    /// next step starts taut and damps with β k again.
     #[test]
     fn a_cable_snapping_taut_keeps_its_slack_branch_for_the_step() {
         snapping_cable(DampingTangent::Objective, 0, |mut nm, (ea, m, dt, v0, s)| {

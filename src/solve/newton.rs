@@ -197,7 +197,7 @@ pub trait Residual {
     /// Adds K = −∂r/∂u at the point of the last `residual` call. Newton asks for it only
     /// when it factors, so a converged or reusing iteration assembles nothing.
     fn tangent(&mut self, k: &mut dyn TangentSink);
-    /// Whether the tangent is symmetric (then Cholesky may factor it).
+    /// Whether the tangent last assembled is symmetric (then Cholesky may factor it).
     fn symmetric(&self) -> bool {
         true
     }

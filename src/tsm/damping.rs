@@ -99,7 +99,9 @@ pub fn objective_damping(
 /// v = c_v u + const (Newmark: c_v = γ/(βΔt)). Per member, with d = x_b − x_a, e = d/l,
 /// P = I − e eᵀ, w = v_b − v_a, l̇ = e·w and k its [`DampingModulus`], the block on d is
 /// factor · [c_v k e eᵀ + (dk/dl) l̇ e eᵀ + k (e (P w)ᵀ + l̇ P)/l]: not symmetric (the
-/// e (P w)ᵀ term), so the step matrix needs a general (LU) factorization.
+/// e (P w)ᵀ term), so the step matrix needs a general (LU) factorization. With `symmetric`
+/// that term is replaced by its symmetric part, ½ (e (P w)ᵀ + P w eᵀ): the symmetric part
+/// of the Jacobian, which Cholesky factors (see [`skew_bound`] for when it serves).
 #[allow(clippy::too_many_arguments)]
 pub fn assemble_objective_damping(
     model: &Model,
@@ -109,6 +111,7 @@ pub fn assemble_objective_damping(
     v: &[f64],
     factor: f64,
     c_v: f64,
+    symmetric: bool,
     sink: &mut (impl TangentSink + ?Sized),
 ) {
     for (e, ((mem, s), m)) in model.members.iter().zip(states).zip(moduli).enumerate() {
@@ -116,10 +119,46 @@ pub fn assemble_objective_damping(
         let rate = s.dir.dot(&w);
         let ee = s.dir * s.dir.transpose();
         let p = Matrix3::identity() - ee;
-        let k = (ee * ((c_v * m.stiffness + m.curvature * rate) * factor))
-            + (s.dir * (p * w).transpose() + p * rate) * (factor * m.stiffness / s.length);
+        let mut turning = s.dir * (p * w).transpose();
+        if symmetric {
+            turning = (turning + turning.transpose()) * 0.5;
+        }
+        let k = (ee * ((c_v * m.stiffness + m.curvature * rate) * factor)) + (turning + p * rate) * (factor * m.stiffness / s.length);
         add_member_block(dofs, e, mem.nodes, &k, sink);
     }
+}
+
+/// An upper bound of the norm of the objective damping Jacobian's skew part,
+/// factor · k (e (P w)ᵀ − P w eᵀ)/(2l) per member: each member's 6 × 6 block has norm
+/// factor · k |P w|/l, and a row of the global matrix meets the blocks of its node's
+/// members, so max over nodes of their sum bounds it (Gershgorin). `node_sum`: a buffer,
+/// one entry per node.
+///
+/// Why: the skew part comes from the members' turning rates |P w|/l, and against the
+/// step matrix's mass term M/(βΔt²) it is usually small (a 47 × 47 grid deploying: the
+/// bound is ~1e-2 of it); Newton with the symmetric part instead of the Jacobian then
+/// contracts by at most about bound/λ_min per iteration, and a Cholesky costs a quarter of
+/// an LU (47 × 47: 0.05 s against 0.17 s; 105 × 105: 0.44 s against 1.75 s,
+/// examples/bench_factor.rs).
+pub fn skew_bound(
+    model: &Model,
+    states: &[MemberState],
+    moduli: &[DampingModulus],
+    dofs: &DofMap,
+    v: &[f64],
+    factor: f64,
+    node_sum: &mut [f64],
+) -> f64 {
+    node_sum.fill(0.0);
+    for ((mem, s), m) in model.members.iter().zip(states).zip(moduli) {
+        let w = relative(dofs, v, mem.nodes);
+        let turning = (w - s.dir * s.dir.dot(&w)).norm();
+        let norm = (factor * m.stiffness * turning / s.length).abs();
+        for &n in &mem.nodes {
+            node_sum[n] += norm;
+        }
+    }
+    node_sum.iter().fold(0.0, |a, &b| a.max(b))
 }
 
 /// factor · k for every member (k: [`member_block`]) into `blocks`: the member blocks of

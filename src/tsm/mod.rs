@@ -14,8 +14,8 @@ mod dofs;
 
 pub use assembly::Assembly;
 pub use damping::{
-    assemble_objective_damping, block_product, damping_moduli, member_damping_all, objective_damping, scaled_blocks, taut_members,
-    DampingModulus,
+    assemble_objective_damping, block_product, damping_moduli, member_damping_all, objective_damping, scaled_blocks, skew_bound,
+    taut_members, DampingModulus,
 };
 pub use dofs::DofMap;
 
