@@ -9,7 +9,7 @@
 use std::time::Instant;
 use tsim::model::grid::GridSpec;
 use tsim::solve::{SparseSolver, TangentSink, TangentSolver};
-use tsim::tsm::{tangent_pattern, DofMap};
+use tsim::tsm::{add_member_block, tangent_pattern, DofMap};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -33,17 +33,7 @@ fn main() {
         for (e, m) in model.members.iter().enumerate() {
             let d = (x[m.nodes[1]] - x[m.nodes[0]]).normalize();
             let k = d * d.transpose() * 1e6 + nalgebra::Matrix3::identity() * 1e3;
-            let free = [0, 1, 2, 3, 4, 5].map(|i| dofs.free(m.nodes[i / 3], i % 3));
-            let block = std::array::from_fn(|r| {
-                std::array::from_fn(|c| {
-                    if (r < 3) == (c < 3) {
-                        k[(r % 3, c % 3)]
-                    } else {
-                        -k[(r % 3, c % 3)]
-                    }
-                })
-            });
-            solver.add_element(e, &free, &block);
+            add_member_block(&dofs, e, m.nodes, &k, solver);
         }
         for i in 0..dofs.len() {
             solver.add(i, i, 1e5);

@@ -551,7 +551,7 @@ fn paper_model_eigen_analysis() {
 /// infinitesimal rotations in its null space; the lag is what breaks it.)
 #[test]
 fn objective_damping_ignores_rigid_motion() {
-    use tsim::tsm::{block_product, damping_moduli, objective_damping, scaled_blocks, taut_members};
+    use tsim::tsm::{block_product, damping_moduli, scaled_blocks, taut_members, ObjectiveDamping};
     let cfg = paper_config();
     let mut eq = real_equilibrium(&cfg);
     for node in &mut eq.model.nodes {
@@ -579,7 +579,15 @@ fn objective_damping_ignores_rigid_motion() {
             })
             .collect();
         let (mut objective, mut paper) = (vec![0.0; dofs.len()], vec![0.0; dofs.len()]);
-        objective_damping(&eq.model, &asm.states, &moduli, &dofs, &v, beta, &mut objective);
+        ObjectiveDamping {
+            model: &eq.model,
+            dofs: &dofs,
+            states: &asm.states,
+            moduli: &moduli,
+            v: &v,
+            beta,
+        }
+        .add_force(&mut objective);
         let back = nalgebra::Rotation3::new(-omega * 1e-3);
         let lagged: Vec<Vector3<f64>> = eq.positions.iter().map(|x| centre + back * (x - centre)).collect();
         let lagged = Assembly::new(&eq.model, &eq.elements, &dofs, lagged);

@@ -3,8 +3,8 @@ use crate::solve::{
     bisect, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink, REUSE_CONTRACTION,
 };
 use crate::tsm::{
-    assemble_objective_damping, assemble_tangents, block_product, damping_moduli, member_damping_all, objective_damping, scaled_blocks,
-    skew_bound, tangent_pattern, taut_members, Assembly, DampingModulus, MemberState,
+    assemble_tangents, block_product, damping_moduli, member_damping_all, scaled_blocks, tangent_pattern, taut_members, Assembly,
+    DampingModulus, MemberState, ObjectiveDamping,
 };
 use nalgebra::Matrix3;
 
@@ -100,7 +100,7 @@ pub struct Retried {
 
 /// Largest estimated contraction per Newton iteration, ‖S‖/λ_min, for which a step with
 /// objective damping is solved with the symmetric part of its Jacobian (Cholesky) instead of
-/// the whole (LU); S is the skew part ([`skew_bound`], a Gershgorin bound) and
+/// the whole (LU); S is the skew part ([`ObjectiveDamping::skew_bound`], a Gershgorin bound) and
 /// λ_min ≥ min m (1/(βΔt²) + α γ/(βΔt)), the step matrix's mass term (K_T's part taken as
 /// non-negative). The same contraction a held factorization must show to be kept
 /// ([`REUSE_CONTRACTION`]): an iteration matrix that is at least that close to the Jacobian
@@ -276,7 +276,15 @@ impl<'a> Newmark<'a> {
         }
         let asm = &self.asm;
         match self.tangent {
-            DampingTangent::Objective => objective_damping(asm.model, &asm.states, &self.moduli, asm.dofs, v, self.rayleigh.beta, out),
+            DampingTangent::Objective => ObjectiveDamping {
+                model: asm.model,
+                dofs: asm.dofs,
+                states: &asm.states,
+                moduli: &self.moduli,
+                v,
+                beta: self.rayleigh.beta,
+            }
+            .add_force(out),
             _ => block_product(asm.model, &self.damp_blocks, asm.dofs, v, out),
         }
     }
@@ -481,21 +489,18 @@ impl Residual for StepProblem<'_, '_> {
         let (alpha_r, beta_r) = (nm.rayleigh.alpha, nm.rayleigh.beta);
         let (model, dofs) = (nm.asm.model, nm.asm.dofs);
         if nm.tangent == DampingTangent::Objective {
-            let skew = skew_bound(model, &nm.asm.states, &nm.moduli, dofs, &nm.v_next, beta_r, &mut nm.node_skew);
-            let mass_term = nm.mass.iter().fold(f64::INFINITY, |m, &mi| m.min(mi)) * (c_a + alpha_r * c_v);
-            nm.symmetric_step = skew <= nm.symmetric_below * mass_term;
-            assemble_tangents(model, dofs, &[(&nm.asm.states, 1.0)], k);
-            assemble_objective_damping(
+            let damping = ObjectiveDamping {
                 model,
-                &nm.asm.states,
-                &nm.moduli,
                 dofs,
-                &nm.v_next,
-                beta_r,
-                c_v,
-                nm.symmetric_step,
-                k,
-            );
+                states: &nm.asm.states,
+                moduli: &nm.moduli,
+                v: &nm.v_next,
+                beta: beta_r,
+            };
+            let mass_term = nm.mass.iter().fold(f64::INFINITY, |m, &mi| m.min(mi)) * (c_a + alpha_r * c_v);
+            nm.symmetric_step = damping.skew_bound(&mut nm.node_skew) <= nm.symmetric_below * mass_term;
+            assemble_tangents(model, dofs, &[(&nm.asm.states, 1.0)], k);
+            damping.add_jacobian(c_v, nm.symmetric_step, k);
         } else {
             assemble_tangents(model, dofs, &[(&nm.asm.states, 1.0), (nm.damping_states(), beta_r * c_v)], k);
         }

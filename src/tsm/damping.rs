@@ -75,90 +75,82 @@ fn scatter(dofs: &DofMap, [a, b]: [usize; 2], f: &Vector3<f64>, out: &mut [f64])
     }
 }
 
-/// out += the objective stiffness-proportional damping force of every member: an axial
-/// force β k l̇ along the member, l̇ = e·(v_b − v_a) its extension rate, k its
-/// [`DampingModulus`] (`factor` = β). A rigid motion (v_b − v_a = ω × d) has l̇ = 0 and gets
-/// no force; the power dissipated, β k l̇², is never negative. For small motions about a
-/// state it is β K_0 v: K_T's geometric part is left out, which is what makes it objective.
-pub fn objective_damping(
-    model: &Model,
-    states: &[MemberState],
-    moduli: &[DampingModulus],
-    dofs: &DofMap,
-    v: &[f64],
-    factor: f64,
-    out: &mut [f64],
-) {
-    for ((mem, s), m) in model.members.iter().zip(states).zip(moduli) {
-        let rate = s.dir.dot(&relative(dofs, v, mem.nodes));
-        scatter(dofs, mem.nodes, &(s.dir * (factor * m.stiffness * rate)), out);
-    }
+/// Objective stiffness-proportional damping of every member at one state: an axial force
+/// β k l̇ along each member, l̇ = e·(v_b − v_a) its extension rate and k its
+/// [`DampingModulus`]. A rigid motion (v_b − v_a = ω × d) has l̇ = 0 and gets no force; the
+/// power dissipated, β k l̇², is never negative. For small motions about a state it is
+/// β K_0 v: K_T's geometric part is left out, which is what makes it objective.
+pub struct ObjectiveDamping<'a> {
+    pub model: &'a Model,
+    pub dofs: &'a DofMap,
+    pub states: &'a [MemberState],
+    pub moduli: &'a [DampingModulus],
+    /// Velocities of the free DOFs.
+    pub v: &'a [f64],
+    /// Rayleigh's β [s].
+    pub beta: f64,
 }
 
-/// Adds ∂/∂u of the objective damping force when the velocities follow the coordinates as
-/// v = c_v u + const (Newmark: c_v = γ/(βΔt)). Per member, with d = x_b − x_a, e = d/l,
-/// P = I − e eᵀ, w = v_b − v_a, l̇ = e·w and k its [`DampingModulus`], the block on d is
-/// factor · [c_v k e eᵀ + (dk/dl) l̇ e eᵀ + k (e (P w)ᵀ + l̇ P)/l]: not symmetric (the
-/// e (P w)ᵀ term), so the step matrix needs a general (LU) factorization. With `symmetric`
-/// that term is replaced by its symmetric part, ½ (e (P w)ᵀ + P w eᵀ): the symmetric part
-/// of the Jacobian, which Cholesky factors (see [`skew_bound`] for when it serves).
-#[allow(clippy::too_many_arguments)]
-pub fn assemble_objective_damping(
-    model: &Model,
-    states: &[MemberState],
-    moduli: &[DampingModulus],
-    dofs: &DofMap,
-    v: &[f64],
-    factor: f64,
-    c_v: f64,
-    symmetric: bool,
-    sink: &mut (impl TangentSink + ?Sized),
-) {
-    for (e, ((mem, s), m)) in model.members.iter().zip(states).zip(moduli).enumerate() {
-        let w = relative(dofs, v, mem.nodes);
-        let rate = s.dir.dot(&w);
-        let ee = s.dir * s.dir.transpose();
-        let p = Matrix3::identity() - ee;
-        let mut turning = s.dir * (p * w).transpose();
-        if symmetric {
-            turning = (turning + turning.transpose()) * 0.5;
-        }
-        let k = (ee * ((c_v * m.stiffness + m.curvature * rate) * factor)) + (turning + p * rate) * (factor * m.stiffness / s.length);
-        add_member_block(dofs, e, mem.nodes, &k, sink);
+impl ObjectiveDamping<'_> {
+    /// Per member: its nodes, state, damping modulus and relative velocity w = v_b − v_a.
+    fn members(&self) -> impl Iterator<Item = (usize, [usize; 2], &MemberState, &DampingModulus, Vector3<f64>)> + '_ {
+        (self.model.members.iter().zip(self.states).zip(self.moduli))
+            .enumerate()
+            .map(|(e, ((mem, s), m))| (e, mem.nodes, s, m, relative(self.dofs, self.v, mem.nodes)))
     }
-}
 
-/// An upper bound of the norm of the objective damping Jacobian's skew part,
-/// factor · k (e (P w)ᵀ − P w eᵀ)/(2l) per member: each member's 6 × 6 block has norm
-/// factor · k |P w|/l, and a row of the global matrix meets the blocks of its node's
-/// members, so max over nodes of their sum bounds it (Gershgorin). `node_sum`: a buffer,
-/// one entry per node.
-///
-/// Why: the skew part comes from the members' turning rates |P w|/l, and against the
-/// step matrix's mass term M/(βΔt²) it is usually small (a 47 × 47 grid deploying: the
-/// bound is ~1e-2 of it); Newton with the symmetric part instead of the Jacobian then
-/// contracts by at most about bound/λ_min per iteration, and a Cholesky costs a quarter of
-/// an LU (47 × 47: 0.05 s against 0.17 s; 105 × 105: 0.44 s against 1.75 s,
-/// examples/bench_factor.rs).
-pub fn skew_bound(
-    model: &Model,
-    states: &[MemberState],
-    moduli: &[DampingModulus],
-    dofs: &DofMap,
-    v: &[f64],
-    factor: f64,
-    node_sum: &mut [f64],
-) -> f64 {
-    node_sum.fill(0.0);
-    for ((mem, s), m) in model.members.iter().zip(states).zip(moduli) {
-        let w = relative(dofs, v, mem.nodes);
-        let turning = (w - s.dir * s.dir.dot(&w)).norm();
-        let norm = (factor * m.stiffness * turning / s.length).abs();
-        for &n in &mem.nodes {
-            node_sum[n] += norm;
+    /// out += the damping force on the free DOFs.
+    pub fn add_force(&self, out: &mut [f64]) {
+        for (_, nodes, s, m, w) in self.members() {
+            scatter(self.dofs, nodes, &(s.dir * (self.beta * m.stiffness * s.dir.dot(&w))), out);
         }
     }
-    node_sum.iter().fold(0.0, |a, &b| a.max(b))
+
+    /// Adds ∂/∂u of the damping force when the velocities follow the coordinates as
+    /// v = c_v u + const (Newmark: c_v = γ/(βΔt)). Per member, with d = x_b − x_a, e = d/l,
+    /// P = I − e eᵀ, l̇ = e·w and k its modulus, the block on d is
+    /// β [c_v k e eᵀ + (dk/dl) l̇ e eᵀ + k (e (P w)ᵀ + l̇ P)/l]: not symmetric (the
+    /// e (P w)ᵀ term), so the step matrix needs a general (LU) factorization. With
+    /// `symmetric` that term is replaced by its symmetric part, ½ (e (P w)ᵀ + P w eᵀ): the
+    /// symmetric part of the Jacobian, which Cholesky factors (see [`Self::skew_bound`] for
+    /// when it serves).
+    pub fn add_jacobian(&self, c_v: f64, symmetric: bool, sink: &mut (impl TangentSink + ?Sized)) {
+        for (e, nodes, s, m, w) in self.members() {
+            let rate = s.dir.dot(&w);
+            let ee = s.dir * s.dir.transpose();
+            let p = Matrix3::identity() - ee;
+            let mut turning = s.dir * (p * w).transpose();
+            if symmetric {
+                turning = (turning + turning.transpose()) * 0.5;
+            }
+            let k =
+                (ee * ((c_v * m.stiffness + m.curvature * rate) * self.beta)) + (turning + p * rate) * (self.beta * m.stiffness / s.length);
+            add_member_block(self.dofs, e, nodes, &k, sink);
+        }
+    }
+
+    /// An upper bound of the norm of the Jacobian's skew part, β k (e (P w)ᵀ − P w eᵀ)/(2l)
+    /// per member: each member's 6 × 6 block has norm β k |P w|/l, and a row of the global
+    /// matrix meets the blocks of its node's members, so max over nodes of their sum bounds
+    /// it (Gershgorin). `node_sum`: a buffer, one entry per node.
+    ///
+    /// Why: the skew part comes from the members' turning rates |P w|/l, and against the
+    /// step matrix's mass term M/(βΔt²) it is usually small (a 47 × 47 grid deploying: the
+    /// bound is ~1e-2 of it); Newton with the symmetric part instead of the Jacobian then
+    /// contracts by at most about bound/λ_min per iteration, and a Cholesky costs a quarter
+    /// of an LU (47 × 47: 0.05 s against 0.17 s; 105 × 105: 0.44 s against 1.75 s,
+    /// examples/bench_factor.rs).
+    pub fn skew_bound(&self, node_sum: &mut [f64]) -> f64 {
+        node_sum.fill(0.0);
+        for (_, nodes, s, m, w) in self.members() {
+            let turning = (w - s.dir * s.dir.dot(&w)).norm();
+            let norm = (self.beta * m.stiffness * turning / s.length).abs();
+            for n in nodes {
+                node_sum[n] += norm;
+            }
+        }
+        node_sum.iter().fold(0.0, |a, &b| a.max(b))
+    }
 }
 
 /// factor · k for every member (k: [`member_block`]) into `blocks`: the member blocks of
@@ -179,7 +171,7 @@ pub fn block_product(model: &Model, blocks: &[Matrix3<f64>], dofs: &DofMap, v: &
 }
 
 /// out (over all 3n node directions, supported ones included) += the stiffness-proportional
-/// damping force of every member: [`objective_damping`]'s with `objective` moduli, else
+/// damping force of every member: [`ObjectiveDamping`]'s with `objective` moduli, else
 /// [`block_product`]'s, with the same member forces. Each member's force is a pair
 /// (+f, −f) on its ends, so what reaches a supported direction is its share of the
 /// support's reaction.

@@ -13,10 +13,7 @@ mod damping;
 mod dofs;
 
 pub use assembly::Assembly;
-pub use damping::{
-    assemble_objective_damping, block_product, damping_moduli, member_damping_all, objective_damping, scaled_blocks, skew_bound,
-    taut_members, DampingModulus,
-};
+pub use damping::{block_product, damping_moduli, member_damping_all, scaled_blocks, taut_members, DampingModulus, ObjectiveDamping};
 pub use dofs::DofMap;
 
 use crate::law::ForceLaw;
@@ -114,7 +111,7 @@ pub fn assemble_tangents(model: &Model, dofs: &DofMap, terms: &[(&[MemberState],
 
 /// Adds member `e`'s 6×6 block [[k, −k], [−k, k]] (k the block on its relative position)
 /// on the free DOFs of its nodes.
-pub(crate) fn add_member_block(dofs: &DofMap, e: usize, [a, b]: [usize; 2], k: &Matrix3<f64>, sink: &mut (impl TangentSink + ?Sized)) {
+pub fn add_member_block(dofs: &DofMap, e: usize, [a, b]: [usize; 2], k: &Matrix3<f64>, sink: &mut (impl TangentSink + ?Sized)) {
     let free = [0, 1, 2, 3, 4, 5].map(|i| dofs.free(if i < 3 { a } else { b }, i % 3));
     let block = std::array::from_fn(|r| {
         std::array::from_fn(|c| {
