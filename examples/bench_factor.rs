@@ -4,17 +4,22 @@
 //! Prints one JSON line per factorization kind: DOF, symbolic time, median factor and
 //! solve times, and the Cholesky factor's size (`SparseSolver::stats`).
 //!
-//! Usage: bench_factor N [REPEATS]
+//! Usage: bench_factor N [REPEATS] [--amd]  (`--amd`: faer's AMD ordering instead of
+//! tsim's nested dissection)
 
 use std::time::Instant;
 use tsim::model::grid::GridSpec;
 use tsim::solve::{SparseSolver, TangentSink, TangentSolver};
-use tsim::tsm::{add_member_block, tangent_pattern, DofMap};
+use tsim::tsm::{add_member_block, tangent_sparsity, DofMap};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let n: usize = args.get(1).and_then(|s| s.parse().ok()).expect("usage: bench_factor N [REPEATS]");
+    let n: usize = args
+        .get(1)
+        .and_then(|s| s.parse().ok())
+        .expect("usage: bench_factor N [REPEATS] [--amd]");
     let repeats: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(3);
+    let amd = args.iter().any(|a| a == "--amd");
     let spec = GridSpec {
         nx: n,
         ny: n,
@@ -26,7 +31,11 @@ fn main() {
     let dofs = DofMap::new(&model, &[]);
     let x = model.positions();
     let t = Instant::now();
-    let mut solver = SparseSolver::new(dofs.len(), tangent_pattern(&model, &dofs));
+    let mut sparsity = tangent_sparsity(&model, &dofs);
+    if amd {
+        sparsity.order = None;
+    }
+    let mut solver = SparseSolver::new(dofs.len(), sparsity);
     let symbolic = t.elapsed().as_secs_f64();
     let fill = |solver: &mut SparseSolver| {
         solver.clear();
@@ -57,8 +66,9 @@ fn main() {
             v[v.len() / 2]
         };
         println!(
-            "{{\"n\": {n}, \"dof\": {}, \"kind\": \"{}\", \"symbolic_s\": {symbolic:.3}, \"factor_s\": {:.4}, \"solve_s\": {:.4}, {}}}",
+            "{{\"n\": {n}, \"dof\": {}, \"ordering\": \"{}\", \"kind\": \"{}\", \"symbolic_s\": {symbolic:.3}, \"factor_s\": {:.4}, \"solve_s\": {:.4}, {}}}",
             dofs.len(),
+            if amd { "amd" } else { "nested_dissection" },
             if symmetric { "cholesky" } else { "lu" },
             med(&mut factor),
             med(&mut solve),

@@ -7,7 +7,7 @@ use tsim::record::NoRecorder;
 use tsim::solve::{LinearSolverChoice, SparseSolver, TangentSolver};
 use tsim::stage::eigen::tangent_matrix;
 use tsim::stage::measure::MeasureSpec;
-use tsim::tsm::{block_product, scaled_blocks, tangent_pattern, Assembly, DofMap};
+use tsim::tsm::{block_product, scaled_blocks, tangent_sparsity, Assembly, DofMap};
 
 /// The paper case with a short deployment, once per solver: the sparse and the dense
 /// Cholesky solve the same linear systems, and both reuse factorizations (the default in
@@ -68,7 +68,7 @@ fn matrix_free_product_and_sparse_solve_match_dense() {
     }
     // A positive definite matrix with K_T's pattern: K_T + a large diagonal shift (as the
     // Newmark step matrix has from M/(βΔt²)).
-    let mut sparse = SparseSolver::new(n, tangent_pattern(&model, &dofs));
+    let mut sparse = SparseSolver::new(n, tangent_sparsity(&model, &dofs));
     asm.add_tangent(1.0, &mut sparse);
     for i in 0..n {
         tsim::solve::TangentSink::add(&mut sparse, i, i, scale);

@@ -3,7 +3,7 @@ use crate::solve::{
     bisect, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink, REUSE_CONTRACTION,
 };
 use crate::tsm::{
-    assemble_tangents, block_product, damping_moduli, member_damping_all, scaled_blocks, tangent_pattern, taut_members, Assembly,
+    assemble_tangents, block_product, damping_moduli, member_damping_all, scaled_blocks, tangent_sparsity, taut_members, Assembly,
     DampingModulus, MemberState, ObjectiveDamping,
 };
 use nalgebra::Matrix3;
@@ -173,7 +173,7 @@ impl<'a> Newmark<'a> {
         let n = mass.len();
         let u = asm.free_coordinates();
         let Integrator { params, damping, newton } = *integrator;
-        let ws = Some(NewtonWorkspace::new(n, &newton, true, || tangent_pattern(asm.model, asm.dofs)));
+        let ws = Some(NewtonWorkspace::new(n, &newton, true, || tangent_sparsity(asm.model, asm.dofs)));
         let mut s = Newmark {
             damp_states: asm.states.clone(),
             damp_blocks: vec![Matrix3::zeros(); asm.states.len()],

@@ -17,7 +17,7 @@
 //! second, deflated run from another start vector checks that no eigenvalue between
 //! the found ones was missed.
 
-use super::linear::{LinearError, SparseSolver, TangentSink, TangentSolver};
+use super::linear::{LinearError, SparseSolver, Sparsity, TangentSink, TangentSolver};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::matrix_free::eigen::{partial_self_adjoint_eigen, partial_self_adjoint_eigen_scratch, PartialEigenParams};
 use faer::matrix_free::LinOp;
@@ -101,7 +101,7 @@ const NORM_ITERATIONS: usize = 12;
 /// eigenvalues largest in θ are the lowest, negative ones (an unstable state) included.
 pub fn partial_eigen(
     mass: &[f64],
-    pattern: impl IntoIterator<Item = (usize, usize)>,
+    sparsity: Sparsity<impl IntoIterator<Item = (usize, usize)>>,
     assemble: &dyn Fn(&mut dyn TangentSink),
     wanted: usize,
     shift: Shift,
@@ -111,7 +111,7 @@ pub fn partial_eigen(
     if n <= needed {
         return Err(EigenError::TooSmall { n, wanted, needed });
     }
-    let mut solver = SparseSolver::new(n, pattern);
+    let mut solver = SparseSolver::new(n, sparsity);
     let sigma = factor_shifted(&mut solver, mass, assemble, shift)?;
     let op = ShiftInvert::new(solver, mass);
     let norm = op.norm_estimate();
@@ -409,7 +409,7 @@ mod tests {
     /// K = diag(d), M = diag(m) through the solver's interface.
     fn diagonal_pencil(d: &[f64], m: &[f64], wanted: usize, shift: Shift) -> Result<EigenPairs, EigenError> {
         let assemble = |k: &mut dyn TangentSink| d.iter().enumerate().for_each(|(i, &v)| k.add(i, i, v));
-        partial_eigen(m, (0..d.len()).map(|i| (i, i)), &assemble, wanted, shift)
+        partial_eigen(m, Sparsity::amd((0..d.len()).map(|i| (i, i))), &assemble, wanted, shift)
     }
 
     /// Every eigenvalue double (λ = 1, 1, 2, 2, …, the masses varied so that the pencil is

@@ -214,8 +214,24 @@ impl TangentSolver for DenseSolver {
     }
 }
 
+/// The shape of a sparse matrix before its values: every (row, column) that can receive an
+/// entry (both triangles), and the order to eliminate its unknowns in.
+pub struct Sparsity<P> {
+    pub entries: P,
+    /// `order[k]`: the unknown eliminated k-th (a structure's: `tsm::tangent_sparsity`);
+    /// `None`: faer's approximate minimum degree (AMD).
+    pub order: Option<Vec<usize>>,
+}
+
+impl<P> Sparsity<P> {
+    /// `entries`, ordered by AMD.
+    pub fn amd(entries: P) -> Self {
+        Sparsity { entries, order: None }
+    }
+}
+
 /// Sparse Cholesky on a fixed pattern (the structure's connectivity): symbolic analysis
-/// (AMD ordering, elimination tree) once, numeric factorization per iteration into
+/// (the ordering of its [`Sparsity`], elimination tree) once, numeric factorization per iteration into
 /// preallocated storage. The full symmetric pattern is stored; the Cholesky factorization
 /// reads its lower triangle. The Newmark step matrix M/(βΔt²) + … + K_T is positive
 /// definite unless the step is far too long, so the dynamic hot loop stays on Cholesky.
@@ -255,10 +271,9 @@ pub struct SparseSolver {
 const LDLT_CHECK: f64 = 1e-6;
 
 impl SparseSolver {
-    /// `pattern`: every (row, column) that can receive an entry; both triangles.
-    pub fn new(n: usize, pattern: impl IntoIterator<Item = (usize, usize)>) -> Self {
+    pub fn new<P: IntoIterator<Item = (usize, usize)>>(n: usize, Sparsity { entries, order }: Sparsity<P>) -> Self {
         let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n];
-        for (r, c) in pattern {
+        for (r, c) in entries {
             cols[c].push(r);
         }
         let mut col_ptr = Vec::with_capacity(n + 1);
@@ -272,7 +287,18 @@ impl SparseSolver {
             col_ptr.push(row_idx.len());
         }
         let structure = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-        let symbolic = factorize_symbolic_cholesky(structure, Side::Lower, SymmetricOrdering::Amd, Default::default())
+        let inverse: Option<Vec<usize>> = order.as_deref().map(|fwd| {
+            let mut inv = vec![0; n];
+            for (new, &old) in fwd.iter().enumerate() {
+                inv[old] = new;
+            }
+            inv
+        });
+        let ordering = match (order.as_deref(), &inverse) {
+            (Some(fwd), Some(inv)) => SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, n)),
+            _ => SymmetricOrdering::Amd,
+        };
+        let symbolic = factorize_symbolic_cholesky(structure, Side::Lower, ordering, Default::default())
             .expect("symbolic Cholesky of a valid pattern");
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
@@ -573,7 +599,7 @@ mod tests {
     /// A sparse solver on `entries`, after checking which faer factorization it uses and
     /// that AMD moves some of `ks`, in a way that tells its two directions apart.
     fn sparse(n: usize, entries: &[(usize, usize, f64)], ks: &[usize], supernodal: bool) -> SparseSolver {
-        let solver = SparseSolver::new(n, entries.iter().map(|&(i, j, _)| (i, j)));
+        let solver = SparseSolver::new(n, Sparsity::amd(entries.iter().map(|&(i, j, _)| (i, j))));
         assert_eq!(matches!(solver.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)), supernodal);
         let (_, inv) = solver.symbolic.perm().expect("an AMD ordering").arrays();
         assert!(ks.iter().any(|&k| inv[inv[k]] != k), "AMD moves none of {ks:?} off an involution");
@@ -599,7 +625,7 @@ mod tests {
     /// Solves `entries` x = A·x_true with the sparse solver; returns which factorization
     /// served and the largest error of x.
     fn sparse_solve(n: usize, entries: &[(usize, usize, f64)]) -> (Factored, f64) {
-        let mut solver = SparseSolver::new(n, entries.iter().map(|&(i, j, _)| (i, j)));
+        let mut solver = SparseSolver::new(n, Sparsity::amd(entries.iter().map(|&(i, j, _)| (i, j))));
         solver.clear();
         let x_true: Vec<f64> = (0..n).map(|i| 1.0 + (i % 7) as f64).collect();
         let mut rhs = vec![0.0; n];

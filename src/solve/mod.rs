@@ -7,12 +7,13 @@ mod dense_eigen;
 mod eigen;
 mod linear;
 mod newton;
+pub mod ordering;
 pub mod small_solve;
 
 pub use bisect::bisect;
 pub use dense_eigen::symmetric_eigen;
 pub use eigen::{krylov_dimension, partial_eigen, Diagonal, EigenError, EigenPairs, Shift};
-pub use linear::{DenseSolver, LinearError, SparseSolver, TangentSink, TangentSolver};
+pub use linear::{DenseSolver, LinearError, SparseSolver, Sparsity, TangentSink, TangentSolver};
 pub use newton::{
     newton, LinearSolverChoice, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentUpdate, DENSE_LIMIT,
     REUSE_CONTRACTION,

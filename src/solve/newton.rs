@@ -1,4 +1,4 @@
-use super::linear::{dof_text, ratio_text, DenseSolver, LinearError, SparseSolver, TangentSink, TangentSolver};
+use super::linear::{dof_text, ratio_text, DenseSolver, LinearError, SparseSolver, Sparsity, TangentSink, TangentSolver};
 
 /// Convergence settings of the Newton-Raphson driver (one struct for every stage).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
@@ -111,19 +111,19 @@ pub struct NewtonWorkspace {
 }
 
 impl NewtonWorkspace {
-    /// `pattern` lists the (row, column) entries the tangent can have (used by the sparse
-    /// solver); `settings` pick the linear solver and, with `transient` (a time-stepping
+    /// `sparsity` gives the tangent's shape to the sparse solver, which calls it only if it
+    /// is the one used; `settings` pick the linear solver and, with `transient` (a time-stepping
     /// stage), whether factorizations are reused ([`TangentUpdate::reuses`]).
     pub fn new<P: IntoIterator<Item = (usize, usize)>>(
         n: usize,
         settings: &NewtonSettings,
         transient: bool,
-        pattern: impl FnOnce() -> P,
+        sparsity: impl FnOnce() -> Sparsity<P>,
     ) -> Self {
         let solver: Box<dyn TangentSolver> = match settings.linear_solver {
             LinearSolverChoice::Dense => Box::new(DenseSolver::new(n)),
             LinearSolverChoice::Auto if n <= DENSE_LIMIT => Box::new(DenseSolver::new(n)),
-            _ => Box::new(SparseSolver::new(n, pattern())),
+            _ => Box::new(SparseSolver::new(n, sparsity())),
         };
         NewtonWorkspace {
             r: vec![0.0; n],
@@ -596,7 +596,7 @@ mod tests {
             tangent,
             ..Default::default()
         };
-        NewtonWorkspace::new(1, &settings, true, Vec::new)
+        NewtonWorkspace::new(1, &settings, true, || Sparsity::amd(Vec::new()))
     }
 
     /// Tolerance 1e-10 × a on the residual, i.e. ~1e-10/3 relative on the root; 1e-10
@@ -664,7 +664,7 @@ mod tests {
             max_iterations: Some(5),
             ..Default::default()
         };
-        let mut ws = NewtonWorkspace::new(2, &settings, false, Vec::new);
+        let mut ws = NewtonWorkspace::new(2, &settings, false, || Sparsity::amd(Vec::new()));
         let mut problem = Scripted {
             first,
             later,

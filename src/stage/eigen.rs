@@ -16,7 +16,7 @@ use crate::model::Model;
 use crate::record::{EigenRecord, Recorder};
 use crate::solve::{krylov_dimension, partial_eigen, symmetric_eigen, Diagonal, Shift, TangentSink};
 use crate::structure::{State, Structure};
-use crate::tsm::{tangent_pattern, Assembly, DofMap};
+use crate::tsm::{tangent_sparsity, Assembly, DofMap};
 use faer::Mat;
 use nalgebra::Vector3;
 
@@ -251,7 +251,7 @@ pub fn modes(asm: &Assembly, mass: &[f64], solver: &ModeSolver) -> Result<Modes>
     let shift = solver.shift.map_or(Shift::Lowest, Shift::Nearest);
     let pairs = partial_eigen(
         mass,
-        tangent_pattern(asm.model, asm.dofs),
+        tangent_sparsity(asm.model, asm.dofs),
         &|k: &mut dyn TangentSink| asm.add_tangent(1.0, k),
         solver.modes,
         shift,
@@ -289,7 +289,7 @@ pub fn lowest_stiffness(asm: &Assembly) -> Result<(f64, String)> {
     let (lowest, i) = if ModeSolver::lowest(1).partial(n) {
         let pairs = partial_eigen(
             &vec![1.0; n],
-            tangent_pattern(model, dofs),
+            tangent_sparsity(model, dofs),
             &|k: &mut dyn TangentSink| asm.add_tangent(1.0, k),
             1,
             Shift::Lowest,

@@ -13,7 +13,7 @@ use crate::model::{height, Model};
 use crate::record::{Constraints, Recorder, Stage};
 use crate::solve::{bisect, newton, NewtonSettings, NewtonWorkspace, SolveError};
 use crate::structure::{State, Structure};
-use crate::tsm::{tangent_pattern, Assembly, DofMap};
+use crate::tsm::{tangent_sparsity, Assembly, DofMap};
 use nalgebra::Vector3;
 
 /// Where one group's prescribed direction goes.
@@ -201,7 +201,7 @@ impl Analysis for Folding {
         let asm = Assembly::new(model, &structure.elements, &dofs, state.positions);
         let mut fold = Fold {
             u: asm.free_coordinates(),
-            ws: NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_pattern(model, &dofs)),
+            ws: NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_sparsity(model, &dofs)),
             problem: StaticEquilibrium {
                 load: structure.free_load(&dofs),
                 asm,

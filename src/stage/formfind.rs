@@ -10,7 +10,7 @@ use crate::model::{height, Model};
 use crate::record::Recorder;
 use crate::solve::{newton, NewtonWorkspace};
 use crate::structure::{State, Structure};
-use crate::tsm::{tangent_pattern, Assembly, DofMap};
+use crate::tsm::{tangent_sparsity, Assembly, DofMap};
 
 /// Static equilibrium without load from a state's positions; `name` names the stage in
 /// errors.
@@ -60,7 +60,7 @@ impl Analysis for SelfEquilibrium {
         let dofs = DofMap::new(model, &[]);
         let asm = Assembly::new(model, &structure.elements, &dofs, state.positions);
         let mut u = asm.free_coordinates();
-        let mut ws = NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_pattern(model, &dofs));
+        let mut ws = NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_sparsity(model, &dofs));
         ws.minimize = self.minimize;
         let mut problem = StaticEquilibrium {
             asm,

@@ -278,7 +278,7 @@ mod tests {
         use crate::stage::measure::MeasureSpec;
         use crate::stage::substitute::{balanced_forces, substitute};
         use crate::stage::{Analysis, Settings, StaticEquilibrium};
-        use crate::tsm::tangent_pattern;
+        use crate::tsm::tangent_sparsity;
 
         let model = TowerSpec {
             struts: 3,
@@ -321,7 +321,7 @@ mod tests {
         let asm = Assembly::new(&model, &structure.elements, &dofs, shape.positions);
         let mut problem = StaticEquilibrium { asm, load };
         let mut u = problem.asm.free_coordinates();
-        let mut ws = NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_pattern(&model, &dofs));
+        let mut ws = NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_sparsity(&model, &dofs));
         newton(&mut problem, &mut u, &settings.newton, model.size(), &mut ws).unwrap();
         problem.asm.set_free(&u);
 

@@ -9,9 +9,9 @@ use super::{record_error, solve_error, Analysis, EquilibriumSummary, Settings, S
 use crate::dynamics::Energy;
 use crate::error::{Error, Result};
 use crate::record::{Recorder, Stage};
-use crate::solve::{bisect, newton, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
+use crate::solve::{bisect, newton, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, Sparsity, TangentSink};
 use crate::structure::{free_values, State, Structure};
-use crate::tsm::{tangent_pattern, Assembly, DofMap};
+use crate::tsm::{tangent_sparsity, Assembly, DofMap};
 use nalgebra::Vector3;
 
 /// The static-load stage.
@@ -223,7 +223,7 @@ impl Steps<'_> {
         let pattern: Vec<Vector3<f64>> = base.iter().zip(target).map(|(b, t)| t - b).collect();
         let model = &self.structure.model;
         let mut phase = LoadSteps {
-            solver: Solver::new(asm.free_coordinates(), self.newton, dofs, model, tangent_pattern(model, dofs)),
+            solver: Solver::new(asm.free_coordinates(), self.newton, dofs, model, tangent_sparsity(model, dofs)),
             base: free_values(dofs, &base),
             pattern: free_values(dofs, &pattern),
             problem: StaticEquilibrium {
@@ -268,13 +268,14 @@ impl Steps<'_> {
         let mut u = asm.free_coordinates();
         u[dof] = 0.0;
         let mut phase = ControlSteps {
-            solver: Solver::new(
-                u.clone(),
-                self.newton,
-                dofs,
-                model,
-                tangent_pattern(model, dofs).chain(pattern_rows),
-            ),
+            solver: Solver::new(u.clone(), self.newton, dofs, model, {
+                // λ takes the control DOF's place: its column gains the loaded rows.
+                let Sparsity { entries, order } = tangent_sparsity(model, dofs);
+                Sparsity {
+                    entries: entries.chain(pattern_rows),
+                    order,
+                }
+            }),
             start,
             displacement: control.displacement,
             problem: PatternControl {
@@ -316,10 +317,10 @@ impl Solver {
         newton: NewtonSettings,
         dofs: &DofMap,
         model: &crate::model::Model,
-        pattern: impl IntoIterator<Item = (usize, usize)>,
+        sparsity: Sparsity<impl IntoIterator<Item = (usize, usize)>>,
     ) -> Self {
         Solver {
-            ws: NewtonWorkspace::new(dofs.len(), &newton, false, || pattern),
+            ws: NewtonWorkspace::new(dofs.len(), &newton, false, || sparsity),
             u,
             newton,
             length: model.size(),

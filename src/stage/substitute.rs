@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::law::ForceLaw;
 use crate::model::clearance::{Search, Struts};
 use crate::model::{MemberKind, Model};
-use crate::solve::{SparseSolver, TangentSink, TangentSolver};
+use crate::solve::{SparseSolver, Sparsity, TangentSink, TangentSolver};
 use crate::structure::{State, Structure};
 use crate::tsm::{Assembly, DofMap, Elements};
 use faer::linalg::solvers::Solve;
@@ -189,7 +189,7 @@ fn sparse_balanced_forces(model: &Model, dofs: &DofMap, positions: &[Vector3<f64
     let pattern = at_node
         .iter()
         .flat_map(|s| s.iter().flat_map(move |&(a, _)| s.iter().map(move |&(b, _)| (a, b))));
-    let mut solver = SparseSolver::new(struts.len(), pattern);
+    let mut solver = SparseSolver::new(struts.len(), Sparsity::amd(pattern));
     let mut rhs = vec![0.0; struts.len()];
     for (node, incident) in at_node.iter().enumerate() {
         let free: Vec<(usize, usize)> = (0..3).filter_map(|ax| dofs.free(node, ax).map(|i| (ax, i))).collect();

@@ -18,6 +18,8 @@ pub use dofs::DofMap;
 
 use crate::law::ForceLaw;
 use crate::model::Model;
+use crate::solve::ordering::nested_dissection;
+use crate::solve::Sparsity;
 use nalgebra::{Matrix3, Vector3};
 use std::sync::Arc;
 
@@ -125,15 +127,27 @@ pub fn add_member_block(dofs: &DofMap, e: usize, [a, b]: [usize; 2], k: &Matrix3
     sink.add_element(e, &free, &block);
 }
 
-/// Every (row, column) of free DOFs that K_T can fill: the DOFs of each member's two
-/// nodes, pairwise. The sparse solver's pattern.
-pub fn tangent_pattern<'a>(model: &'a Model, dofs: &'a DofMap) -> impl Iterator<Item = (usize, usize)> + 'a {
-    model.members.iter().flat_map(move |mem| {
-        let free: Vec<usize> = mem
-            .nodes
-            .iter()
-            .flat_map(|&n| (0..3).filter_map(move |a| dofs.free(n, a)))
-            .collect();
+/// K_T's shape for the sparse solver: every (row, column) of free DOFs it can fill (the
+/// DOFs of each member's two nodes, pairwise), eliminated node by node in a nested
+/// dissection of the model's nominal geometry ([`nested_dissection`]).
+pub fn tangent_sparsity<'a>(model: &'a Model, dofs: &'a DofMap) -> Sparsity<impl Iterator<Item = (usize, usize)> + 'a> {
+    let free = move |n: usize| (0..3).filter_map(move |a| dofs.free(n, a));
+    let entries = model.members.iter().flat_map(move |mem| {
+        let free: Vec<usize> = mem.nodes.iter().flat_map(|&n| free(n)).collect();
         free.iter().flat_map(|&r| free.iter().map(move |&c| (r, c))).collect::<Vec<_>>()
-    })
+    });
+    // The matrix's graph at node level: a node without free DOFs couples nothing.
+    let mut neighbours = vec![Vec::new(); model.node_count()];
+    for m in &model.members {
+        let [a, b] = m.nodes;
+        if free(a).next().is_some() && free(b).next().is_some() {
+            neighbours[a].push(b);
+            neighbours[b].push(a);
+        }
+    }
+    let nodes = nested_dissection(&model.positions(), &neighbours);
+    Sparsity {
+        entries,
+        order: Some(nodes.into_iter().flat_map(free).collect()),
+    }
 }
