@@ -97,6 +97,8 @@ pub struct NewtonWorkspace {
     shift: f64,
     /// The solver holds a factorization of the tangent at an earlier iterate.
     factored: bool,
+    /// Reuse across solves ([`HeldStart`]).
+    held: HeldStart,
     /// max|r| at each evaluation of the last solve, the first at the starting point [N].
     pub history: Vec<f64>,
     /// The potential at the start and after each iteration of the last solve, for
@@ -132,6 +134,7 @@ impl NewtonWorkspace {
             minimize: false,
             shift: 0.0,
             factored: false,
+            held: HeldStart::default(),
             history: Vec::with_capacity(64),
             energies: Vec::with_capacity(64),
             factorizations: 0,
@@ -151,6 +154,50 @@ impl NewtonWorkspace {
     /// step cut in halves spent before it was cut, which no converged report shows.
     pub fn last_effort(&self) -> (usize, usize) {
         (self.history.len().saturating_sub(1), self.factorizations)
+    }
+}
+
+/// Whether a solve starts with the factorization held from the previous one, or factors
+/// afresh: an adaptive back-off.
+///
+/// Why: a held factorization that turns out stale costs a wasted iteration (a residual
+/// and a solve) before the refactorization; one that holds saves a factorization. Which
+/// is likelier depends on the problem: the paper's tower keeps it for most steps, while
+/// a grid whose cables go slack and taut outdates it every step (a 47 × 47 grid: the held
+/// factor's second iteration contracts only 0.4–0.8, so every step ran 4 iterations with
+/// one refactorization, where a fresh start takes 3). So after a held start fails, the
+/// next 2^k solves start fresh (k = 0, 1, … up to [`MAX_FRESH_STARTS`] solves), and one
+/// that succeeds resets k. Converged states meet the same tolerances either way.
+#[derive(Clone, Copy, Debug, Default)]
+struct HeldStart {
+    /// Solves left to start fresh before the held factorization is tried again.
+    fresh_left: u32,
+    /// Fresh starts after the next failed held start.
+    next_backoff: u32,
+}
+
+/// The longest run of fresh starts between two tries of a held factorization: a probe
+/// every 32 solves costs at most 1/32 of an iteration per solve.
+const MAX_FRESH_STARTS: u32 = 32;
+
+impl HeldStart {
+    /// Whether this solve may start with the held factorization (counts a fresh start).
+    fn try_held(&mut self) -> bool {
+        if self.fresh_left == 0 {
+            return true;
+        }
+        self.fresh_left -= 1;
+        false
+    }
+
+    /// A held start was tried: whether it carried the solve without a refactorization.
+    fn record(&mut self, held: bool) {
+        if held {
+            self.next_backoff = 1;
+        } else {
+            self.fresh_left = self.next_backoff.max(1);
+            self.next_backoff = (2 * self.fresh_left).min(MAX_FRESH_STARTS);
+        }
     }
 }
 
@@ -370,6 +417,11 @@ fn iterate(
     let mut last_moved = f64::INFINITY;
     ws.energies.extend(energy);
     let cap = settings.iteration_cap(ws.minimize);
+    // Whether this solve starts with the held factorization, until it is replaced.
+    let mut on_held = ws.reuse && ws.factored && ws.held.try_held();
+    if ws.reuse && !on_held {
+        ws.factored = false;
+    }
     for iteration in 0..=cap {
         let scale = problem.residual(u, &mut ws.r);
         let (res, worst_dof) = max_abs(&ws.r).map_err(|dof| {
@@ -387,6 +439,9 @@ fn iterate(
         // measure structure, lowest eigenvalue ~1e-17 of its largest, wandered 90
         // iterations there).
         if res <= tolerance && (iteration == 0 || increment <= increment_tolerance || stalled) {
+            if on_held && iteration > 0 {
+                ws.held.record(true);
+            }
             return Ok(NewtonReport {
                 iterations: iteration,
                 factorizations: ws.factorizations,
@@ -404,6 +459,9 @@ fn iterate(
             });
         }
         if !(ws.reuse && ws.factored && res <= REUSE_CONTRACTION * previous) {
+            if std::mem::take(&mut on_held) {
+                ws.held.record(false);
+            }
             ws.factored = false;
             ws.solver.clear();
             problem.tangent(&mut *ws.solver);
@@ -635,6 +693,24 @@ mod tests {
         let (u, fresh) = solve(1010.0, u, TangentUpdate::Reuse, &mut ws);
         assert_root(u, 1010.0);
         assert_eq!(fresh.factorizations, 1, "{fresh:?}");
+    }
+
+    /// A held factorization that fails at a solve's start makes the next solve start with a
+    /// fresh one, even where the held one would do; the solve after tries it again.
+    #[test]
+    fn a_failed_held_start_makes_the_next_solve_start_fresh() {
+        let mut ws = workspace(TangentUpdate::Reuse);
+        let (u, _) = solve(8.0, 1.5, TangentUpdate::Reuse, &mut ws);
+        let (u, far) = solve(1000.0, u, TangentUpdate::Reuse, &mut ws);
+        assert!(far.factorizations >= 1, "{far:?}");
+        // The tangent at u = 10 (300) is within 1 % of the one at the next root: held, it
+        // would converge without a factorization.
+        let (u, fresh) = solve(1010.0, u, TangentUpdate::Reuse, &mut ws);
+        assert_root(u, 1010.0);
+        assert_eq!(fresh.factorizations, 1, "{fresh:?}");
+        let (u, held) = solve(1020.0, u, TangentUpdate::Reuse, &mut ws);
+        assert_root(u, 1020.0);
+        assert_eq!(held.factorizations, 0, "{held:?}");
     }
 
     /// A residual `first` at the first evaluation and `later` after, whatever u is;
