@@ -302,13 +302,16 @@ impl<'a> Newmark<'a> {
     /// node directions into `out`, with the member states its equation used: on the free
     /// directions it is the β part of the damping force the step balanced, on the supported
     /// ones what the members' damping forces put into the supports. The αM part acts on
-    /// the free directions only (a support does not move relative to the base).
-    pub fn member_damping_force(&self, out: &mut [f64]) {
+    /// the free directions only (a support does not move relative to the base). Summed over
+    /// `members` only (model order): a direction gets its whole force where all its node's
+    /// members are among them.
+    pub fn member_damping_force(&self, members: &[usize], out: &mut [f64]) {
         out.fill(0.0);
         let objective = (self.tangent == DampingTangent::Objective).then_some(&self.moduli[..]);
         let asm = &self.asm;
         member_damping_all(
             asm.model,
+            members,
             self.damping_states(),
             objective,
             asm.dofs,

@@ -171,12 +171,14 @@ pub fn block_product(model: &Model, blocks: &[Matrix3<f64>], dofs: &DofMap, v: &
 }
 
 /// out (over all 3n node directions, supported ones included) += the stiffness-proportional
-/// damping force of every member: [`ObjectiveDamping`]'s with `objective` moduli, else
-/// [`block_product`]'s, with the same member forces. Each member's force is a pair
+/// damping force of the `members` listed: [`ObjectiveDamping`]'s with `objective` moduli,
+/// else [`block_product`]'s, with the same member forces. Each member's force is a pair
 /// (+f, −f) on its ends, so what reaches a supported direction is its share of the
 /// support's reaction.
+#[allow(clippy::too_many_arguments)] // the member list, states and velocities of one product
 pub fn member_damping_all(
     model: &Model,
+    members: &[usize],
     states: &[MemberState],
     objective: Option<&[DampingModulus]>,
     dofs: &DofMap,
@@ -184,7 +186,8 @@ pub fn member_damping_all(
     factor: f64,
     out: &mut [f64],
 ) {
-    for (e, (mem, s)) in model.members.iter().zip(states).enumerate() {
+    for &e in members {
+        let (mem, s) = (&model.members[e], &states[e]);
         let w = relative(dofs, v, mem.nodes);
         let f = match objective {
             Some(moduli) => s.dir * (factor * moduli[e].stiffness * s.dir.dot(&w)),
