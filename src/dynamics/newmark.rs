@@ -4,7 +4,7 @@ use crate::solve::{
 };
 use crate::tsm::{
     assemble_tangents, block_product, damping_moduli, member_damping_all, scaled_blocks, tangent_pattern, taut_members, Assembly,
-    DampingModulus, MemberState, ObjectiveDamping,
+    DampingModulus, MemberState, NodeSpace, ObjectiveDamping,
 };
 use nalgebra::Matrix3;
 
@@ -137,6 +137,8 @@ pub struct Newmark<'a> {
     /// β k per member of the βK term's states ([`scaled_blocks`]; unused for `Objective`):
     /// re-formed when those states change, not at every residual.
     damp_blocks: Vec<Matrix3<f64>>,
+    /// The βK product's node buffers.
+    nodes: NodeSpace,
     /// Per member, whether it was taut at the step's start, and its damping modulus at the
     /// current states on that branch (`Objective` only; [`DampingModulus`]).
     taut: Vec<bool>,
@@ -177,6 +179,7 @@ impl<'a> Newmark<'a> {
         let mut s = Newmark {
             damp_states: asm.states.clone(),
             damp_blocks: vec![Matrix3::zeros(); asm.states.len()],
+            nodes: NodeSpace::new(asm.model.node_count()),
             taut: vec![true; asm.states.len()],
             moduli: vec![DampingModulus::default(); asm.states.len()],
             symmetric_step: false,
@@ -207,9 +210,9 @@ impl<'a> Newmark<'a> {
         };
         s.update_damping_blocks();
         s.keep_branches();
-        let mut fd = std::mem::take(&mut s.fd);
-        s.damping_force(&s.v, &mut fd);
-        s.fd = fd;
+        let (v, mut fd) = (std::mem::take(&mut s.v), std::mem::take(&mut s.fd));
+        s.damping_force(&v, &mut fd);
+        (s.v, s.fd) = (v, fd);
         for i in 0..n {
             s.a[i] = (s.f[i] - s.fd[i] - s.asm.p_free(i)) / s.mass[i];
         }
@@ -270,7 +273,7 @@ impl<'a> Newmark<'a> {
 
     /// The Rayleigh damping force α M v + the β term (per `tangent`) on the free DOFs at
     /// velocities `v` into `out`.
-    fn damping_force(&self, v: &[f64], out: &mut [f64]) {
+    fn damping_force(&mut self, v: &[f64], out: &mut [f64]) {
         for i in 0..v.len() {
             out[i] = self.rayleigh.alpha * self.mass[i] * v[i];
         }
@@ -285,7 +288,7 @@ impl<'a> Newmark<'a> {
                 beta: self.rayleigh.beta,
             }
             .add_force(out),
-            _ => block_product(asm.model, &self.damp_blocks, asm.dofs, v, out),
+            _ => block_product(asm.model, &self.damp_blocks, asm.dofs, v, out, &mut self.nodes),
         }
     }
 
@@ -458,8 +461,9 @@ impl Residual for StepProblem<'_, '_> {
         nm.update_moduli();
         nm.next_velocity(u, self.dt);
         let n = u.len();
-        let mut fd = std::mem::take(&mut nm.fd_next);
-        nm.damping_force(&nm.v_next, &mut fd);
+        let (v_next, mut fd) = (std::mem::take(&mut nm.v_next), std::mem::take(&mut nm.fd_next));
+        nm.damping_force(&v_next, &mut fd);
+        nm.v_next = v_next;
         let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);
         for i in 0..n {
             let m = nm.mass[i];
@@ -619,6 +623,7 @@ mod tests {
                 assert_eq!(symmetrized, symmetric_below > 0.0, "{tangent:?}");
                 let v_frozen = problem.nm.v_next.clone();
                 let mut blocks = problem.nm.damp_blocks.clone();
+                let mut nodes = NodeSpace::new(problem.nm.asm.model.node_count());
                 let h = 1e-6;
                 let (mut rp, mut rm, mut gp, mut gm) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
                 // The expected tangent, column by column, and the largest omitted term.
@@ -632,12 +637,12 @@ mod tests {
                     let nm = &*problem.nm;
                     gp.fill(0.0);
                     scaled_blocks(&nm.asm.states, nm.rayleigh.beta, &mut blocks);
-                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gp);
+                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gp, &mut nodes);
                     problem.residual(&um, &mut rm);
                     let nm = &*problem.nm;
                     gm.fill(0.0);
                     scaled_blocks(&nm.asm.states, nm.rayleigh.beta, &mut blocks);
-                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gm);
+                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gm, &mut nodes);
                     for i in 0..n {
                         let exact = -(rp[i] - rm[i]) / (2.0 * h);
                         let omitted = (gp[i] - gm[i]) / (2.0 * h);
@@ -684,7 +689,7 @@ mod tests {
                 assert_eq!((&fresh.states, &fresh.p), (&nm.asm.states, &nm.asm.p), "{tangent:?}");
                 assert_eq!(nm.asm.strain_energy(), nm.energy.strain, "{tangent:?}");
                 let mut fd = vec![0.0; nm.v.len()];
-                nm.damping_force(&nm.v, &mut fd);
+                nm.damping_force(&nm.v.clone(), &mut fd);
                 assert_eq!(fd, nm.fd, "{tangent:?}");
             });
         }
