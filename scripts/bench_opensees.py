@@ -50,6 +50,8 @@ import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
+# Heading of bench/opensees.md's hand-written section of earlier figures, which a rewrite keeps.
+HISTORY = "## History\n"
 
 # tsim's material library values for the strut (src/config/materials.rs): the config only
 # names `aluminium`. Checked against the member forces tsim recorded (see check_forces).
@@ -617,6 +619,10 @@ def main():
                 lines.append(f"| {label} | completes | {c['max_xyz']:.2e} H | {it} | {wall:.2f} |")
     text = "\n".join(lines) + "\n"
     print(text)
+    # The file's History section (figures of earlier commits, written by hand) is kept.
+    previous = Path(args.out).read_text() if Path(args.out).exists() else ""
+    if HISTORY in previous:
+        text += "\n" + HISTORY + previous.split(HISTORY, 1)[1]
     if not args.no_write:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(text)

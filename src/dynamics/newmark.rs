@@ -4,7 +4,7 @@ use crate::solve::{
 };
 use crate::tsm::{
     assemble_tangents, block_product, damping_moduli, member_damping_all, scaled_blocks, tangent_sparsity, taut_members, Assembly,
-    DampingModulus, MemberState, ObjectiveDamping,
+    DampingModulus, MemberState, NodeSpace, ObjectiveDamping,
 };
 use nalgebra::Matrix3;
 
@@ -137,6 +137,8 @@ pub struct Newmark<'a> {
     /// β k per member of the βK term's states ([`scaled_blocks`]; unused for `Objective`):
     /// re-formed when those states change, not at every residual.
     damp_blocks: Vec<Matrix3<f64>>,
+    /// The βK product's node buffers.
+    nodes: NodeSpace,
     /// Per member, whether it was taut at the step's start, and its damping modulus at the
     /// current states on that branch (`Objective` only; [`DampingModulus`]).
     taut: Vec<bool>,
@@ -177,6 +179,7 @@ impl<'a> Newmark<'a> {
         let mut s = Newmark {
             damp_states: asm.states.clone(),
             damp_blocks: vec![Matrix3::zeros(); asm.states.len()],
+            nodes: NodeSpace::new(asm.model.node_count()),
             taut: vec![true; asm.states.len()],
             moduli: vec![DampingModulus::default(); asm.states.len()],
             symmetric_step: false,
@@ -207,9 +210,9 @@ impl<'a> Newmark<'a> {
         };
         s.update_damping_blocks();
         s.keep_branches();
-        let mut fd = std::mem::take(&mut s.fd);
-        s.damping_force(&s.v, &mut fd);
-        s.fd = fd;
+        let (v, mut fd) = (std::mem::take(&mut s.v), std::mem::take(&mut s.fd));
+        s.damping_force(&v, &mut fd);
+        (s.v, s.fd) = (v, fd);
         for i in 0..n {
             s.a[i] = (s.f[i] - s.fd[i] - s.asm.p_free(i)) / s.mass[i];
         }
@@ -270,7 +273,7 @@ impl<'a> Newmark<'a> {
 
     /// The Rayleigh damping force α M v + the β term (per `tangent`) on the free DOFs at
     /// velocities `v` into `out`.
-    fn damping_force(&self, v: &[f64], out: &mut [f64]) {
+    fn damping_force(&mut self, v: &[f64], out: &mut [f64]) {
         for i in 0..v.len() {
             out[i] = self.rayleigh.alpha * self.mass[i] * v[i];
         }
@@ -285,14 +288,14 @@ impl<'a> Newmark<'a> {
                 beta: self.rayleigh.beta,
             }
             .add_force(out),
-            _ => block_product(asm.model, &self.damp_blocks, asm.dofs, v, out),
+            _ => block_product(asm.model, &self.damp_blocks, asm.dofs, v, out, &mut self.nodes),
         }
     }
 
     fn ledger_now(&self, damping: f64, external: f64) -> Energy {
         Energy {
             kinetic: 0.5 * self.mass.iter().zip(&self.v).map(|(m, v)| m * v * v).sum::<f64>(),
-            strain: self.asm.elements.strain_energy(self.asm.model, &self.asm.x),
+            strain: self.asm.strain_energy(),
             damping,
             external,
         }
@@ -302,13 +305,16 @@ impl<'a> Newmark<'a> {
     /// node directions into `out`, with the member states its equation used: on the free
     /// directions it is the β part of the damping force the step balanced, on the supported
     /// ones what the members' damping forces put into the supports. The αM part acts on
-    /// the free directions only (a support does not move relative to the base).
-    pub fn member_damping_force(&self, out: &mut [f64]) {
+    /// the free directions only (a support does not move relative to the base). Summed over
+    /// `members` only (model order): a direction gets its whole force where all its node's
+    /// members are among them.
+    pub fn member_damping_force(&self, members: &[usize], out: &mut [f64]) {
         out.fill(0.0);
         let objective = (self.tangent == DampingTangent::Objective).then_some(&self.moduli[..]);
         let asm = &self.asm;
         member_damping_all(
             asm.model,
+            members,
             self.damping_states(),
             objective,
             asm.dofs,
@@ -398,20 +404,15 @@ impl<'a> Newmark<'a> {
                 return Err(e);
             }
         };
-        // Commit: positions, accelerations, velocities, damping force, energy ledger.
-        self.asm.set_free(&trial);
-        self.update_moduli();
-        if self.tangent == DampingTangent::Current {
-            self.update_damping_blocks();
-        }
+        // Commit: positions, accelerations, velocities, damping force, energy ledger. The
+        // last residual was evaluated at `trial` (`newton` ends on it): `asm`, the damping
+        // moduli and blocks, `v_next` and `fd_next` hold the converged step's values.
         let c_a = 1.0 / (beta * dt * dt);
         let (mut dw, mut dd) = (0.0, 0.0);
-        self.next_velocity(&trial, dt);
         for (a, (u, base)) in self.a.iter_mut().zip(trial.iter().zip(&self.base)) {
             *a = c_a * (u - base);
         }
         let mut fd_next = std::mem::take(&mut self.fd_next);
-        self.damping_force(&self.v_next, &mut fd_next);
         // Trapezoidal work of the forces each equation actually used: with average
         // acceleration this is the discrete energy identity of the scheme.
         for i in 0..n {
@@ -460,8 +461,9 @@ impl Residual for StepProblem<'_, '_> {
         nm.update_moduli();
         nm.next_velocity(u, self.dt);
         let n = u.len();
-        let mut fd = std::mem::take(&mut nm.fd_next);
-        nm.damping_force(&nm.v_next, &mut fd);
+        let (v_next, mut fd) = (std::mem::take(&mut nm.v_next), std::mem::take(&mut nm.fd_next));
+        nm.damping_force(&v_next, &mut fd);
+        nm.v_next = v_next;
         let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);
         for i in 0..n {
             let m = nm.mass[i];
@@ -621,6 +623,7 @@ mod tests {
                 assert_eq!(symmetrized, symmetric_below > 0.0, "{tangent:?}");
                 let v_frozen = problem.nm.v_next.clone();
                 let mut blocks = problem.nm.damp_blocks.clone();
+                let mut nodes = NodeSpace::new(problem.nm.asm.model.node_count());
                 let h = 1e-6;
                 let (mut rp, mut rm, mut gp, mut gm) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
                 // The expected tangent, column by column, and the largest omitted term.
@@ -634,12 +637,12 @@ mod tests {
                     let nm = &*problem.nm;
                     gp.fill(0.0);
                     scaled_blocks(&nm.asm.states, nm.rayleigh.beta, &mut blocks);
-                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gp);
+                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gp, &mut nodes);
                     problem.residual(&um, &mut rm);
                     let nm = &*problem.nm;
                     gm.fill(0.0);
                     scaled_blocks(&nm.asm.states, nm.rayleigh.beta, &mut blocks);
-                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gm);
+                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gm, &mut nodes);
                     for i in 0..n {
                         let exact = -(rp[i] - rm[i]) / (2.0 * h);
                         let omitted = (gp[i] - gm[i]) / (2.0 * h);
@@ -666,6 +669,28 @@ mod tests {
                 assert!(worst < 1e-3, "{tangent:?}: tangent differs from −∂r/∂u by {worst:e} N/m");
                 // The omitted term is large enough that the check above tells it apart.
                 assert!(omitted_size > 1.0, "{tangent:?}: ∂K_T/∂x·v only {omitted_size:e} N/m");
+            });
+        }
+    }
+
+    /// A step commits what its last residual computed instead of evaluating again: the
+    /// committed member states, internal force, velocities and damping force must be
+    /// exactly (bitwise) those of a fresh evaluation at the committed coordinates.
+    #[test]
+    fn a_step_commits_the_state_of_a_fresh_evaluation() {
+        for tangent in [
+            DampingTangent::Objective,
+            DampingTangent::Initial,
+            DampingTangent::LastConverged,
+            DampingTangent::Current,
+        ] {
+            moving_prism(tangent, |nm| {
+                let fresh = Assembly::new(nm.asm.model, nm.asm.elements, nm.asm.dofs, nm.asm.x.clone());
+                assert_eq!((&fresh.states, &fresh.p), (&nm.asm.states, &nm.asm.p), "{tangent:?}");
+                assert_eq!(nm.asm.strain_energy(), nm.energy.strain, "{tangent:?}");
+                let mut fd = vec![0.0; nm.v.len()];
+                nm.damping_force(&nm.v.clone(), &mut fd);
+                assert_eq!(fd, nm.fd, "{tangent:?}");
             });
         }
     }

@@ -365,8 +365,10 @@ impl SolveError {
 /// Converged when max|r| ≤ tol_f·force + roundoff and the last increment max|Δu| ≤
 /// tol_u·`length` (a start already in balance needs no increment). With reuse on, the
 /// factorization held in `ws` (possibly from an earlier solve) is used while the residual
-/// keeps falling [`REUSE_CONTRACTION`]-fold per iteration. Errors name a free DOF by
-/// index ([`SolveError::dof`]); the caller knows the model that labels it.
+/// keeps falling [`REUSE_CONTRACTION`]-fold per iteration. On success the last
+/// [`Residual::residual`] call was at the returned `u`, so the problem's state is the
+/// converged one (a caller may commit it without evaluating again). Errors name a free
+/// DOF by index ([`SolveError::dof`]); the caller knows the model that labels it.
 pub fn newton(
     problem: &mut impl Residual,
     u: &mut [f64],

@@ -35,8 +35,11 @@ pub struct FrameBuilder {
     forces: Vec<f64>,
     lengths: Vec<f64>,
     reactions: Vec<f64>,
-    /// The members' β damping force on all 3n directions (zero in static stages).
+    /// The members' β damping force on all 3n directions (zero in static stages), summed
+    /// over `constrained_members` only: the reactions read it at constrained directions.
     damping: Vec<f64>,
+    /// The members with an end at a constrained direction's node, in model order.
+    constrained_members: Vec<usize>,
     /// Largest equilibrium error of the recorded steps, absolute [N] and relative.
     pub check: EquilibriumCheck,
     /// The lowest modes (ω², lowest mode over every node) the next frames carry, when the
@@ -75,7 +78,13 @@ impl FrameBuilder {
             .filter(|&(n, a)| dofs.free(n, a).is_none() && !model.nodes[n].support[a])
             .collect();
         let constraints = Constraints::new(model, &prescribed);
+        let mut constrained = vec![false; nodes];
+        constraints.0.iter().for_each(|c| constrained[c.node] = true);
+        let constrained_members = (0..model.members.len())
+            .filter(|&m| model.members[m].nodes.iter().any(|&n| constrained[n]))
+            .collect();
         FrameBuilder {
+            constrained_members,
             reactions: vec![0.0; constraints.len()],
             constraints,
             masses: (0..nodes).map(|n| structure.masses.get(n).copied().unwrap_or(0.0)).collect(),
@@ -149,7 +158,7 @@ impl FrameBuilder {
                 self.velocities[n][a] = vi;
                 balance[a] -= nm.mass[i] * (nm.a[i] + nm.rayleigh.alpha * vi);
             }
-            nm.member_damping_force(&mut self.damping);
+            nm.member_damping_force(&self.constrained_members, &mut self.damping);
             base = support_acceleration;
         }
         let mut reaction_sum = Vector3::zeros();

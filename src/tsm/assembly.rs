@@ -15,6 +15,8 @@ pub struct Assembly<'a> {
     pub states: Vec<MemberState>,
     /// Internal force over all 3n directions.
     pub p: Vec<f64>,
+    /// Per node, its largest |coordinate|: what a length's round-off grows with ([`Self::scale`]).
+    reach: Vec<f64>,
 }
 
 impl<'a> Assembly<'a> {
@@ -26,6 +28,7 @@ impl<'a> Assembly<'a> {
             x,
             states: Vec::new(),
             p: vec![0.0; 3 * model.node_count()],
+            reach: vec![0.0; model.node_count()],
         };
         a.update();
         a
@@ -35,6 +38,9 @@ impl<'a> Assembly<'a> {
     pub fn update(&mut self) {
         member_states(self.model, self.elements, &self.x, &mut self.states);
         internal_force(self.model, &self.states, &mut self.p);
+        for (r, x) in self.reach.iter_mut().zip(&self.x) {
+            *r = x.amax();
+        }
     }
 
     /// Writes the free coordinates `u` into `x` and re-evaluates.
@@ -89,7 +95,7 @@ impl<'a> Assembly<'a> {
             .iter()
             .zip(&self.states)
             .fold((applied, 0.0_f64), |(f, s), (mem, m)| {
-                let reach = self.x[mem.nodes[0]].amax().max(self.x[mem.nodes[1]].amax()).max(m.length);
+                let reach = self.reach[mem.nodes[0]].max(self.reach[mem.nodes[1]]).max(m.length);
                 (f.max(m.force.abs()), s.max(m.stiffness.abs() * reach + m.force.abs()))
             });
         Scale {

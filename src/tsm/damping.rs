@@ -163,20 +163,66 @@ pub fn scaled_blocks(states: &[MemberState], factor: f64, blocks: &mut [Matrix3<
 }
 
 /// out += K·v on the free DOFs, member by member (no matrix), with K's member `blocks`
-/// from [`scaled_blocks`]: the βK part of paper-style Rayleigh damping.
-pub fn block_product(model: &Model, blocks: &[Matrix3<f64>], dofs: &DofMap, v: &[f64], out: &mut [f64]) {
+/// from [`scaled_blocks`]: the βK part of paper-style Rayleigh damping. `nodes`: buffers
+/// for the model's nodes.
+pub fn block_product(model: &Model, blocks: &[Matrix3<f64>], dofs: &DofMap, v: &[f64], out: &mut [f64], nodes: &mut NodeSpace) {
+    nodes.load(dofs, v, out);
     for (mem, k) in model.members.iter().zip(blocks) {
-        scatter(dofs, mem.nodes, &(k * relative(dofs, v, mem.nodes)), out);
+        let [a, b] = mem.nodes;
+        let f = k * (nodes.v[b] - nodes.v[a]);
+        nodes.f[a] -= f;
+        nodes.f[b] += f;
+    }
+    nodes.store(dofs, out);
+}
+
+/// Per-node copies of a free-DOF vector and of a result, so that a loop over members reads
+/// and writes its ends directly instead of asking for each direction whether it is free (a
+/// fixed direction reads zero velocity, and what it receives is dropped). Entries add up in
+/// the same order as on the free DOFs, so the result is the same to the last bit.
+#[derive(Clone, Debug)]
+pub struct NodeSpace {
+    v: Vec<Vector3<f64>>,
+    f: Vec<Vector3<f64>>,
+}
+
+impl NodeSpace {
+    pub fn new(nodes: usize) -> Self {
+        NodeSpace {
+            v: vec![Vector3::zeros(); nodes],
+            f: vec![Vector3::zeros(); nodes],
+        }
+    }
+
+    /// `v` onto the nodes (zero at fixed directions), and the result at what `out` holds.
+    fn load(&mut self, dofs: &DofMap, v: &[f64], out: &[f64]) {
+        self.v.fill(Vector3::zeros());
+        self.f.fill(Vector3::zeros());
+        for (i, (vi, oi)) in v.iter().zip(out).enumerate() {
+            let (n, a) = dofs.owner(i);
+            self.v[n][a] = *vi;
+            self.f[n][a] = *oi;
+        }
+    }
+
+    /// The result at the free DOFs into `out`.
+    fn store(&self, dofs: &DofMap, out: &mut [f64]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            let (n, a) = dofs.owner(i);
+            *o = self.f[n][a];
+        }
     }
 }
 
 /// out (over all 3n node directions, supported ones included) += the stiffness-proportional
-/// damping force of every member: [`ObjectiveDamping`]'s with `objective` moduli, else
-/// [`block_product`]'s, with the same member forces. Each member's force is a pair
+/// damping force of the `members` listed: [`ObjectiveDamping`]'s with `objective` moduli,
+/// else [`block_product`]'s, with the same member forces. Each member's force is a pair
 /// (+f, −f) on its ends, so what reaches a supported direction is its share of the
 /// support's reaction.
+#[allow(clippy::too_many_arguments)] // the member list, states and velocities of one product
 pub fn member_damping_all(
     model: &Model,
+    members: &[usize],
     states: &[MemberState],
     objective: Option<&[DampingModulus]>,
     dofs: &DofMap,
@@ -184,7 +230,8 @@ pub fn member_damping_all(
     factor: f64,
     out: &mut [f64],
 ) {
-    for (e, (mem, s)) in model.members.iter().zip(states).enumerate() {
+    for &e in members {
+        let (mem, s) = (&model.members[e], &states[e]);
         let w = relative(dofs, v, mem.nodes);
         let f = match objective {
             Some(moduli) => s.dir * (factor * moduli[e].stiffness * s.dir.dot(&w)),

@@ -13,7 +13,9 @@ mod damping;
 mod dofs;
 
 pub use assembly::Assembly;
-pub use damping::{block_product, damping_moduli, member_damping_all, scaled_blocks, taut_members, DampingModulus, ObjectiveDamping};
+pub use damping::{
+    block_product, damping_moduli, member_damping_all, scaled_blocks, taut_members, DampingModulus, NodeSpace, ObjectiveDamping,
+};
 pub use dofs::DofMap;
 
 use crate::law::ForceLaw;

@@ -12,6 +12,7 @@
 //! [`Tracker`] follows a stage's steps and reports the events: a touch (clearance ≤ 0)
 //! and a pass-through (one axis crossing the other between two steps).
 
+mod bound;
 mod grid;
 mod segment;
 mod track;
@@ -220,25 +221,32 @@ impl Struts {
         } else {
             self.near(x, f64::INFINITY, ws, near);
         }
-        // Ties (a symmetric tower) go to the lowest pair, whatever order the search found them in.
-        let best = near
-            .iter()
-            .min_by(|a, b| a.clearance.total_cmp(&b.clearance).then(a.struts.cmp(&b.struts)))?;
-        let (i, j) = best.struts;
-        let (clearance, c) = self.pair(best.struts, x);
+        Some(self.describe(best(near)?.struts, x))
+    }
+
+    /// Pair `(i, j)` at `x` as the nearest pair.
+    fn describe(&self, (i, j): (u32, u32), x: &[Vector3<f64>]) -> Nearest {
+        let (clearance, c) = self.pair((i, j), x);
         let (mi, mj) = (self.member(i), self.member(j));
         let (members, points) = if mi < mj {
             ([mi, mj], [c.on_a, c.on_b])
         } else {
             ([mj, mi], [c.on_b, c.on_a])
         };
-        Some(Nearest {
+        Nearest {
             clearance,
             members,
             points,
             radius: self.radius[i as usize].max(self.radius[j as usize]),
-        })
+        }
     }
+}
+
+/// The pair of `near` with the smallest clearance. Ties (a symmetric tower) go to the
+/// lowest pair, whatever order the search found them in.
+fn best(near: &[PairClearance]) -> Option<&PairClearance> {
+    near.iter()
+        .min_by(|a, b| a.clearance.total_cmp(&b.clearance).then(a.struts.cmp(&b.struts)))
 }
 
 #[cfg(test)]

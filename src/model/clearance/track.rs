@@ -13,6 +13,7 @@
 //!   state is therefore seen as that touch only). Two flips within one step, and parallel
 //!   axes sliding through each other, are not seen: the check samples the steps it is given.
 
+use super::bound::Bounds;
 use super::{Aabb, Nearest, PairClearance, Segment, Struts, Workspace};
 use nalgebra::Vector3;
 use std::sync::Arc;
@@ -66,6 +67,8 @@ pub struct Tracker {
     events: Vec<Event>,
     /// The previous step's smallest clearance: where the grid's search starts.
     last: f64,
+    /// With all pairs, the pairs' clearance bounds that let a step skip most of them.
+    bounds: Option<Bounds>,
 }
 
 /// Bisection steps for the moment of crossing: 2^-60 of a step is below f64 resolution.
@@ -90,6 +93,7 @@ impl Tracker {
             sides: Vec::with_capacity(struts.pairs.len()),
             events: Vec::with_capacity(2 * room),
             last: 0.0,
+            bounds: (!struts.grid).then(|| Bounds::new(&struts)),
             struts,
         }
     }
@@ -97,7 +101,10 @@ impl Tracker {
     /// Observes the converged positions `x` of step `step` at `time`; returns the nearest
     /// pair (`None`: fewer than two non-adjacent struts) and adds the step's events.
     pub fn observe(&mut self, x: &[Vector3<f64>], step: usize, time: f64) -> Option<Nearest> {
-        let nearest = self.struts.nearest(x, 1.25 * self.last, &mut self.ws, &mut self.near);
+        let nearest = match &mut self.bounds {
+            Some(bounds) => bounds.nearest(&self.struts, x, &self.previous, &mut self.near),
+            None => self.struts.nearest(x, 1.25 * self.last, &mut self.ws, &mut self.near),
+        };
         self.last = nearest.map_or(0.0, |n| n.clearance);
         self.touches(step, time);
         self.pass_throughs(x, step, time);
