@@ -2,6 +2,7 @@
 //! Newton-Raphson driver every stage uses, the linear solves inside it, and the dense and
 //! partial symmetric eigensolvers (shift-invert Lanczos on a sparse factorization).
 
+mod backoff;
 mod bisect;
 mod dense_eigen;
 mod eigen;

@@ -1,3 +1,4 @@
+use super::backoff::Backoff;
 use super::linear::{dof_text, ratio_text, DenseSolver, LinearError, SparseSolver, Sparsity, TangentSink, TangentSolver};
 
 /// Convergence settings of the Newton-Raphson driver (one struct for every stage).
@@ -97,8 +98,16 @@ pub struct NewtonWorkspace {
     shift: f64,
     /// The solver holds a factorization of the tangent at an earlier iterate.
     factored: bool,
-    /// Reuse across solves ([`HeldStart`]).
-    held: HeldStart,
+    /// Whether a solve starts with the factorization held from the previous one.
+    ///
+    /// Why a back-off: a held factorization that turns out stale costs a wasted iteration
+    /// (a residual and a solve) before the refactorization; one that holds saves a
+    /// factorization. Which is likelier depends on the problem: the paper's tower keeps
+    /// it for most steps, while a grid whose cables go slack and taut outdates it every
+    /// step (a 47 × 47 grid: the held factor's second iteration contracts only 0.4–0.8,
+    /// so every step ran 4 iterations with one refactorization, where a fresh start takes
+    /// 3).
+    held: Backoff,
     /// max|r| at each evaluation of the last solve, the first at the starting point [N].
     pub history: Vec<f64>,
     /// The potential at the start and after each iteration of the last solve, for
@@ -134,7 +143,7 @@ impl NewtonWorkspace {
             minimize: false,
             shift: 0.0,
             factored: false,
-            held: HeldStart::default(),
+            held: Backoff::default(),
             history: Vec::with_capacity(64),
             energies: Vec::with_capacity(64),
             factorizations: 0,
@@ -154,50 +163,6 @@ impl NewtonWorkspace {
     /// step cut in halves spent before it was cut, which no converged report shows.
     pub fn last_effort(&self) -> (usize, usize) {
         (self.history.len().saturating_sub(1), self.factorizations)
-    }
-}
-
-/// Whether a solve starts with the factorization held from the previous one, or factors
-/// afresh: an adaptive back-off.
-///
-/// Why: a held factorization that turns out stale costs a wasted iteration (a residual
-/// and a solve) before the refactorization; one that holds saves a factorization. Which
-/// is likelier depends on the problem: the paper's tower keeps it for most steps, while
-/// a grid whose cables go slack and taut outdates it every step (a 47 × 47 grid: the held
-/// factor's second iteration contracts only 0.4–0.8, so every step ran 4 iterations with
-/// one refactorization, where a fresh start takes 3). So after a held start fails, the
-/// next 2^k solves start fresh (k = 0, 1, … up to [`MAX_FRESH_STARTS`] solves), and one
-/// that succeeds resets k. Converged states meet the same tolerances either way.
-#[derive(Clone, Copy, Debug, Default)]
-struct HeldStart {
-    /// Solves left to start fresh before the held factorization is tried again.
-    fresh_left: u32,
-    /// Fresh starts after the next failed held start.
-    next_backoff: u32,
-}
-
-/// The longest run of fresh starts between two tries of a held factorization: a probe
-/// every 32 solves costs at most 1/32 of an iteration per solve.
-const MAX_FRESH_STARTS: u32 = 32;
-
-impl HeldStart {
-    /// Whether this solve may start with the held factorization (counts a fresh start).
-    fn try_held(&mut self) -> bool {
-        if self.fresh_left == 0 {
-            return true;
-        }
-        self.fresh_left -= 1;
-        false
-    }
-
-    /// A held start was tried: whether it carried the solve without a refactorization.
-    fn record(&mut self, held: bool) {
-        if held {
-            self.next_backoff = 1;
-        } else {
-            self.fresh_left = self.next_backoff.max(1);
-            self.next_backoff = (2 * self.fresh_left).min(MAX_FRESH_STARTS);
-        }
     }
 }
 
@@ -420,7 +385,7 @@ fn iterate(
     ws.energies.extend(energy);
     let cap = settings.iteration_cap(ws.minimize);
     // Whether this solve starts with the held factorization, until it is replaced.
-    let mut on_held = ws.reuse && ws.factored && ws.held.try_held();
+    let mut on_held = ws.reuse && ws.factored && ws.held.attempt();
     if ws.reuse && !on_held {
         ws.factored = false;
     }
