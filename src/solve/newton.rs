@@ -37,6 +37,8 @@ pub struct NewtonSettings {
 /// into a residual evaluation and two triangular solves. The reuse is guarded: as soon as
 /// an iteration reduces the residual less than [`REUSE_CONTRACTION`]-fold, the tangent is
 /// rebuilt and factored at the current iterate, which is then a full Newton iteration.
+/// A solve whose held factorization failed so makes the next ones start fresh for a while
+/// (`NewtonWorkspace::held`, an exponential back-off).
 /// The converged point meets the same tolerances either way.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
