@@ -68,7 +68,7 @@ fn main() {
         println!(
             "{{\"n\": {n}, \"dof\": {}, \"ordering\": \"{}\", \"kind\": \"{}\", \"symbolic_s\": {symbolic:.3}, \"factor_s\": {:.4}, \"solve_s\": {:.4}, {}}}",
             dofs.len(),
-            if amd { "amd" } else { "nested_dissection" },
+            if amd { "amd" } else { "nested_dissection_or_amd" },
             if symmetric { "cholesky" } else { "lu" },
             med(&mut factor),
             med(&mut solve),

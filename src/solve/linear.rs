@@ -219,8 +219,9 @@ impl TangentSolver for DenseSolver {
 /// entry (both triangles), and the order to eliminate its unknowns in.
 pub struct Sparsity<P> {
     pub entries: P,
-    /// `order[k]`: the unknown eliminated k-th (a structure's: `tsm::tangent_sparsity`);
-    /// `None`: faer's approximate minimum degree (AMD).
+    /// `order[k]`: the unknown eliminated k-th (a structure's: `tsm::tangent_sparsity`),
+    /// used where its factor has fewer nonzeros than with faer's approximate minimum
+    /// degree (AMD); `None`: AMD.
     pub order: Option<Vec<usize>>,
 }
 
@@ -280,6 +281,8 @@ pub struct SparseSolver {
 const LDLT_CHECK: f64 = 1e-6;
 
 impl SparseSolver {
+    /// A solver for n × n matrices of the shape `sparsity` gives; the symbolic analysis
+    /// is done here, once.
     pub fn new<P: IntoIterator<Item = (usize, usize)>>(n: usize, Sparsity { entries, order }: Sparsity<P>) -> Self {
         let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n];
         for (r, c) in entries {
@@ -296,19 +299,27 @@ impl SparseSolver {
             col_ptr.push(row_idx.len());
         }
         let structure = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-        let inverse: Option<Vec<usize>> = order.as_deref().map(|fwd| {
-            let mut inv = vec![0; n];
-            for (new, &old) in fwd.iter().enumerate() {
-                inv[old] = new;
-            }
-            inv
-        });
-        let ordering = match (order.as_deref(), &inverse) {
-            (Some(fwd), Some(inv)) => SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, n)),
-            _ => SymmetricOrdering::Amd,
+        let analyse = |ordering| {
+            factorize_symbolic_cholesky(structure, Side::Lower, ordering, Default::default()).expect("symbolic Cholesky of a valid pattern")
         };
-        let symbolic = factorize_symbolic_cholesky(structure, Side::Lower, ordering, Default::default())
-            .expect("symbolic Cholesky of a valid pattern");
+        let amd = analyse(SymmetricOrdering::Amd);
+        // The given order where its factor is smaller than AMD's (a dissection wins on a
+        // plate, AMD on a long, thin tower: see `ordering.rs`).
+        let symbolic = match order {
+            Some(fwd) => {
+                let mut inv = vec![0; n];
+                for (new, &old) in fwd.iter().enumerate() {
+                    inv[old] = new;
+                }
+                let given = analyse(SymmetricOrdering::Custom(PermRef::new_checked(&fwd, &inv, n)));
+                if given.len_val() < amd.len_val() {
+                    given
+                } else {
+                    amd
+                }
+            }
+            None => amd,
+        };
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
             symbolic.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()),
@@ -334,11 +345,16 @@ impl SparseSolver {
 }
 
 impl SparseSolver {
+    /// Nonzeros of the Cholesky factor the symbolic analysis chose.
+    pub fn factor_nonzeros(&self) -> usize {
+        self.symbolic.len_val()
+    }
+
     /// The symbolic Cholesky's figures as JSON fields (for benchmarks): nnz(L) and, for a
     /// supernodal factor, its supernodes' widths and the flops of one numeric factorization
     /// (per supernode of width w with r rows below: w³/3 + r w² + r² w).
     pub fn stats(&self) -> String {
-        let nnz_l = self.symbolic.len_val();
+        let nnz_l = self.factor_nonzeros();
         match self.symbolic.raw() {
             SymbolicCholeskyRaw::Simplicial(_) => format!("\"nnz_l\": {nnz_l}, \"supernodal\": false"),
             SymbolicCholeskyRaw::Supernodal(s) => {

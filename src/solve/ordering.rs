@@ -8,7 +8,10 @@
 //! split the nodes at the median of their longest extent, take as separator a vertex cover
 //! of the members across the split, order each half the same way, then the separator.
 //! Measured on the 105 × 105 grid's step matrix (100 481 DOF; bench/pipeline.md): 5.3e9
-//! flops and 17.4 M nonzeros in the factor, against AMD's 11.8e9 and 24.0 M.
+//! flops and 17.4 M nonzeros in the factor, against AMD's 11.8e9 and 24.0 M. On a long,
+//! thin tower AMD's nearly banded order fills less (a 5-strut, 300-stage tower's
+//! form-finding took 3× as long on the dissection), so the sparse solver analyses both
+//! and keeps the smaller factor (`SparseSolver::new`).
 
 use nalgebra::Vector3;
 use std::cmp::Reverse;
