@@ -71,10 +71,13 @@ impl Constraints {
     /// The supports of `model` and the `prescribed` (node, axis) directions (a support
     /// that is also prescribed is listed once, as a support).
     pub fn new(model: &Model, prescribed: &[(usize, usize)]) -> Self {
+        // A lookup table, not `contains`: folding a grid prescribes thousands of directions.
+        let mut is_prescribed = vec![false; 3 * model.node_count()];
+        prescribed.iter().for_each(|&(node, axis)| is_prescribed[3 * node + axis] = true);
         let mut list = Vec::new();
         for (node, n) in model.nodes.iter().enumerate() {
             for axis in 0..3 {
-                let prescribed = !n.support[axis] && prescribed.contains(&(node, axis));
+                let prescribed = !n.support[axis] && is_prescribed[3 * node + axis];
                 if prescribed || n.support[axis] {
                     list.push(Constraint { node, axis, prescribed });
                 }

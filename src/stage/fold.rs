@@ -84,20 +84,32 @@ impl Folding {
     }
 
     /// Start and target of every prescribed direction from positions `x`.
+    /// A direction prescribed twice takes the later prescription, in the later place.
     fn resolve(&self, x: &[Vector3<f64>]) -> Prescribed {
-        let mut dofs: Prescribed = Vec::new();
+        let mut all: Prescribed = Vec::new();
         for p in &self.prescribe {
             let a = p.axis;
+            let level = match &p.target {
+                Target::LevelOf(level) => level.iter().map(|&m| x[m][a]).sum::<f64>() / level.len() as f64,
+                Target::Displacement(_) => 0.0,
+            };
             for &n in &p.nodes {
                 let target = match &p.target {
                     Target::Displacement(d) => x[n][a] + d,
-                    Target::LevelOf(level) => level.iter().map(|&m| x[m][a]).sum::<f64>() / level.len() as f64,
+                    Target::LevelOf(_) => level,
                 };
-                dofs.retain(|&(m, b, _, _)| !(m == n && b == a));
-                dofs.push((n, a, x[n][a], target));
+                all.push((n, a, x[n][a], target));
             }
         }
-        dofs
+        // By a table of last places, not a search per push: a grid's top layer is
+        // thousands of directions.
+        let mut last = vec![usize::MAX; 3 * x.len()];
+        all.iter().enumerate().for_each(|(k, &(n, a, _, _))| last[3 * n + a] = k);
+        all.into_iter()
+            .enumerate()
+            .filter(|&(k, (n, a, _, _))| last[3 * n + a] == k)
+            .map(|(_, d)| d)
+            .collect()
     }
 }
 
@@ -260,5 +272,32 @@ impl Analysis for Folding {
         summary.equilibrium = frames.check.into();
         summary.height_ratio = height(&fold.problem.asm.x) / h0;
         Ok((State::at_rest(fold.problem.asm.x), summary))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Node 1's z is prescribed twice: the later prescription wins and takes the later
+    /// place; a level target is the level's mean.
+    #[test]
+    fn a_direction_prescribed_twice_takes_the_later_prescription() {
+        let x: Vec<Vector3<f64>> = (0..4).map(|i| Vector3::new(0.0, 0.0, i as f64)).collect();
+        let prescribe = |nodes: Vec<usize>, target| Prescription { nodes, axis: 2, target };
+        let folding = Folding {
+            steps: 1,
+            max_cuts: 0,
+            prescribe: vec![
+                prescribe(vec![0, 1], Target::Displacement(-0.5)),
+                prescribe(vec![2], Target::Displacement(1.0)),
+                prescribe(vec![1, 3], Target::LevelOf(vec![0, 2])),
+            ],
+            modes: 0,
+        };
+        assert_eq!(
+            folding.resolve(&x),
+            vec![(0, 2, 0.0, -0.5), (2, 2, 2.0, 3.0), (1, 2, 1.0, 1.0), (3, 2, 3.0, 1.0)]
+        );
     }
 }
