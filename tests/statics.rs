@@ -322,3 +322,54 @@ fn loading_errors_name_the_line_and_the_fix() {
         "{e}"
     );
 }
+
+/// The last folding frame's positions, and the Newton iterations folding took.
+#[derive(Default)]
+struct FoldEnd {
+    folding: bool,
+    last: Vec<Vector3<f64>>,
+}
+
+impl Recorder for FoldEnd {
+    fn begin_stage(&mut self, stage: tsim::record::Stage, _constraints: &tsim::record::Constraints) -> RecordResult {
+        self.folding = stage == tsim::record::Stage::Folding;
+        Ok(())
+    }
+    fn frame(&mut self, frame: &Frame) -> RecordResult {
+        if self.folding {
+            self.last = frame.positions.to_vec();
+        }
+        Ok(())
+    }
+}
+
+/// Folding a 6 × 6 grid (its top layer pushed down 5 cm, steel cables that slacken) in 5
+/// or in 20 steps ends in the same equilibrium: the steps after the first start from the
+/// path extrapolated along the last step's secant (fold.rs, `predict`), which must change
+/// where Newton starts, not where it ends. Tolerance: both ends are equilibria to the
+/// Newton tolerance (1e-10 of the largest member force, ~1e3 N, through stiffnesses of
+/// ≥ ~1e3 N/m: ~1e-10 m), so 1e-8 m leaves a wide margin, while a start that led Newton to
+/// another equilibrium would differ by the folding's own scale, centimetres.
+#[test]
+fn folding_a_grid_in_5_or_20_steps_ends_in_the_same_equilibrium() {
+    let end = |steps: usize| {
+        let text = format!(
+            "name: fold\nmodel:\n  grid: {{ nx: 6, ny: 6 }}\nformfinding: {{}}\n\
+             substitution: {{ strut: aluminium, cable: steel_cable, prestress_scale: 100.0 }}\n\
+             folding:\n  steps: {steps}\n  prescribe:\n    - {{ group: top, axis: z, displacement: -0.05 }}\n"
+        );
+        let cfg = tsim::config::parse_case(&text, "fold.yaml").unwrap_or_else(|e| panic!("{e}"));
+        let mut log = FoldEnd::default();
+        let summary = tsim::pipeline::run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("{e}"));
+        let folding = summary.folding.expect("folding ran");
+        eprintln!(
+            "{steps} steps: {} Newton iterations, {} cut",
+            folding.newton_iterations, folding.cut_steps
+        );
+        log.last
+    };
+    let (five, twenty) = (end(5), end(20));
+    let apart = five.iter().zip(&twenty).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    eprintln!("largest distance between the ends: {apart:.3e} m");
+    assert!(apart <= 1e-8, "the ends are {apart:.3e} m apart");
+}
