@@ -18,7 +18,7 @@ use nalgebra::Vector3;
 /// closest points of axes within 1e-7 rad of parallel (`segment::PARALLEL`) are taken at an
 /// end, which may overstate the distance by the angle times a length, ≤ 1e-7 of it. A bound
 /// lowered by 1e-6 of the lengths is therefore below the clearance the search would compute.
-const MARGIN: f64 = 1e-6;
+pub(super) const MARGIN: f64 = 1e-6;
 
 /// Lower bounds of every pair's clearance (in the order of `Struts::pairs`).
 #[derive(Clone, Debug)]
@@ -141,7 +141,7 @@ mod tests {
                     }
                 }
                 let got = bounds.nearest(&all, &x, &previous, &mut near);
-                prop_assert_eq!(got, all.nearest(&x, 0.0, &mut ws, &mut want));
+                prop_assert_eq!(got, all.nearest(&x, &mut ws, &mut want));
                 let touching = |pairs: &[PairClearance]| {
                     let mut t: Vec<_> = pairs.iter().filter(|p| p.clearance <= 0.0).copied().collect();
                     t.sort_by_key(|p| p.struts);

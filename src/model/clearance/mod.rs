@@ -14,6 +14,7 @@
 
 mod bound;
 mod grid;
+mod neighbours;
 mod segment;
 mod track;
 
@@ -200,16 +201,16 @@ impl Struts {
 
     /// The closest non-adjacent pair at `x` (`None` without one); `near` is left holding
     /// every pair within some d ≥ 0 of it, touching pairs included. With the grid, d starts
-    /// at `hint` (the previous step's clearance, say) or 2 r_max, and grows fourfold until a
-    /// pair is found: a search over the whole model only when struts are far apart.
-    pub fn nearest(&self, x: &[Vector3<f64>], hint: f64, ws: &mut Workspace, near: &mut Vec<PairClearance>) -> Option<Nearest> {
+    /// at 2 r_max and grows fourfold until a pair is found: a search over the whole model
+    /// only when struts are far apart. (Along a stage's steps, `Tracker` keeps the pairs.)
+    pub fn nearest(&self, x: &[Vector3<f64>], ws: &mut Workspace, near: &mut Vec<PairClearance>) -> Option<Nearest> {
         if self.grid {
             let (lo, hi) = (0..self.len() as u32).map(|k| self.segment(k, x)).fold(
                 (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
                 |(lo, hi), s| (lo.inf(&s.p).inf(&s.q), hi.sup(&s.p).sup(&s.q)),
             );
             let diagonal = (hi - lo).norm();
-            let mut d = hint.max(2.0 * self.r_max).max(1e-6 * diagonal);
+            let mut d = (2.0 * self.r_max).max(1e-6 * diagonal);
             loop {
                 self.near(x, d, ws, near);
                 // Beyond the diagonal every pair is within d: none found means none exist.
@@ -295,8 +296,8 @@ mod tests {
             grid.near(&x, d, &mut ws, &mut got);
             got.sort_by_key(|p| p.struts);
             prop_assert_eq!(&got, &want);
-            let a = all.nearest(&x, 0.0, &mut ws, &mut want);
-            let g = grid.nearest(&x, 0.0, &mut ws, &mut got);
+            let a = all.nearest(&x, &mut ws, &mut want);
+            let g = grid.nearest(&x, &mut ws, &mut got);
             prop_assert_eq!(a, g);
         }
     }
@@ -312,7 +313,7 @@ mod tests {
         assert_eq!((struts.len(), struts.pairs.len()), (10, 45));
         let x = model.positions();
         let (mut ws, mut near) = (Workspace::default(), Vec::new());
-        let nearest = struts.nearest(&x, 0.0, &mut ws, &mut near).unwrap();
+        let nearest = struts.nearest(&x, &mut ws, &mut near).unwrap();
         assert_eq!(near.len(), 45);
         let axis = (nearest.points[1] - nearest.points[0]).norm();
         assert!((nearest.clearance - (axis - 2.0 * r)).abs() < 1e-12);

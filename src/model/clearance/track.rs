@@ -14,7 +14,8 @@
 //!   axes sliding through each other, are not seen: the check samples the steps it is given.
 
 use super::bound::Bounds;
-use super::{Aabb, Nearest, PairClearance, Segment, Struts, Workspace};
+use super::neighbours::Neighbours;
+use super::{Aabb, Nearest, PairClearance, Segment, Struts};
 use nalgebra::Vector3;
 use std::sync::Arc;
 
@@ -52,7 +53,7 @@ pub struct Event {
 /// Follows one stage: give it every converged step in order ([`Tracker::observe`]).
 pub struct Tracker {
     struts: Arc<Struts>,
-    ws: Workspace,
+    pairs: Pairs,
     near: Vec<PairClearance>,
     /// The previous step's positions (empty before the first) and time.
     previous: Vec<Vector3<f64>>,
@@ -65,10 +66,16 @@ pub struct Tracker {
     sides: Vec<i8>,
     /// Events since the last [`Tracker::clear_events`].
     events: Vec<Event>,
-    /// The previous step's smallest clearance: where the grid's search starts.
-    last: f64,
-    /// With all pairs, the pairs' clearance bounds that let a step skip most of them.
-    bounds: Option<Bounds>,
+    /// Each strut's box swept between the previous step and this one.
+    boxes: Vec<Aabb>,
+}
+
+/// How a step finds the pairs it tests.
+enum Pairs {
+    /// All pairs, with clearance bounds that let a step skip most of them.
+    All(Bounds),
+    /// The grid's pairs, listed while the struts stay near.
+    Listed(Box<Neighbours>),
 }
 
 /// Bisection steps for the moment of crossing: 2^-60 of a step is below f64 resolution.
@@ -84,7 +91,10 @@ impl Tracker {
         // (grid): a step then allocates only in an extreme case.
         let room = if struts.grid { 8 * struts.len() } else { struts.pairs.len() };
         Tracker {
-            ws: Workspace::default(),
+            pairs: match struts.grid {
+                true => Pairs::Listed(Box::default()),
+                false => Pairs::All(Bounds::new(&struts)),
+            },
             near: Vec::with_capacity(room),
             previous: Vec::new(),
             previous_time: 0.0,
@@ -92,8 +102,7 @@ impl Tracker {
             touching_now: Vec::with_capacity(room),
             sides: Vec::with_capacity(struts.pairs.len()),
             events: Vec::with_capacity(2 * room),
-            last: 0.0,
-            bounds: (!struts.grid).then(|| Bounds::new(&struts)),
+            boxes: Vec::with_capacity(struts.len()),
             struts,
         }
     }
@@ -101,13 +110,19 @@ impl Tracker {
     /// Observes the converged positions `x` of step `step` at `time`; returns the nearest
     /// pair (`None`: fewer than two non-adjacent struts) and adds the step's events.
     pub fn observe(&mut self, x: &[Vector3<f64>], step: usize, time: f64) -> Option<Nearest> {
-        let nearest = match &mut self.bounds {
-            Some(bounds) => bounds.nearest(&self.struts, x, &self.previous, &mut self.near),
-            None => self.struts.nearest(x, 1.25 * self.last, &mut self.ws, &mut self.near),
+        // The largest displacement of a strut's end since the previous step.
+        let travel = match self.previous.is_empty() {
+            true => 0.0,
+            false => (self.struts.ends.iter().flatten())
+                .map(|&n| (x[n] - self.previous[n]).norm())
+                .fold(0.0, f64::max),
         };
-        self.last = nearest.map_or(0.0, |n| n.clearance);
+        let nearest = match &mut self.pairs {
+            Pairs::All(bounds) => bounds.nearest(&self.struts, x, &self.previous, &mut self.near),
+            Pairs::Listed(list) => list.nearest(&self.struts, x, travel, &mut self.near),
+        };
         self.touches(step, time);
-        self.pass_throughs(x, step, time);
+        self.pass_throughs(x, step, time, travel);
         self.previous.clear();
         self.previous.extend_from_slice(x);
         self.previous_time = time;
@@ -143,16 +158,17 @@ impl Tracker {
         std::mem::swap(&mut self.touching, &mut self.touching_now);
     }
 
-    /// Pairs whose axes crossed between the previous step and `x` (at the first step, only
-    /// the sides are kept).
-    fn pass_throughs(&mut self, x: &[Vector3<f64>], step: usize, time: f64) {
+    /// Pairs whose axes crossed between the previous step and `x`, whose strut ends moved
+    /// at most `travel` (at the first step, only the sides are kept).
+    fn pass_throughs(&mut self, x: &[Vector3<f64>], step: usize, time: f64, travel: f64) {
         let Tracker {
             struts,
-            ws,
+            pairs,
             previous,
             previous_time,
             events,
             sides,
+            boxes,
             ..
         } = self;
         if previous.is_empty() {
@@ -161,28 +177,18 @@ impl Tracker {
             sides.extend(struts.pairs.iter().map(side));
             return;
         }
-        // Axes that cross meet inside the boxes swept by both between the steps: a pair whose
-        // boxes are apart cannot have crossed (the grid finds only overlapping ones).
-        let Workspace { grid, boxes, candidates } = ws;
+        // Axes that cross meet inside the boxes swept by both between the steps.
         boxes.clear();
         for k in 0..struts.len() as u32 {
             let (a, b) = (struts.segment(k, previous), struts.segment(k, x));
             boxes.push(Aabb::around(&[a.p, a.q, b.p, b.q], 0.0));
         }
-        for (k, &pair) in struts.candidates(x, boxes, grid, candidates).iter().enumerate() {
-            let after = (struts.segment(pair.0, x), struts.segment(pair.1, x));
-            let side = after.0.orientation(&after.1);
-            let before = (struts.segment(pair.0, previous), struts.segment(pair.1, previous));
-            // All pairs: pair k's side kept from the previous step; the grid's candidates
-            // change from step to step, so it compares both steps afresh.
-            let was = if struts.grid {
-                before.0.orientation(&before.1)
-            } else {
-                std::mem::replace(&mut sides[k], side)
-            };
+        let mut check = |pair: (u32, u32), was: i8, side: i8| {
             if was * side >= 0 || !boxes[pair.0 as usize].overlaps(&boxes[pair.1 as usize]) {
-                continue;
+                return;
             }
+            let after = (struts.segment(pair.0, x), struts.segment(pair.1, x));
+            let before = (struts.segment(pair.0, previous), struts.segment(pair.1, previous));
             if let Some(tau) = crossing(before, after) {
                 events.push(Event {
                     kind: EventKind::PassThrough,
@@ -191,6 +197,22 @@ impl Tracker {
                     time: *previous_time + tau * (time - *previous_time),
                     clearance: struts.pair(pair, x).0,
                 });
+            }
+        };
+        let side = |pair: (u32, u32), at: &[Vector3<f64>]| struts.segment(pair.0, at).orientation(&struts.segment(pair.1, at));
+        match pairs {
+            // Each pair's side kept from the previous step.
+            Pairs::All(_) => {
+                for (k, &pair) in struts.pairs.iter().enumerate() {
+                    let now = side(pair, x);
+                    check(pair, std::mem::replace(&mut sides[k], now), now);
+                }
+            }
+            // A pair whose axes crossed is within twice the travel at the step's end.
+            Pairs::Listed(list) => {
+                for pair in list.within(2.0 * travel) {
+                    check(pair, side(pair, previous), side(pair, x));
+                }
             }
         }
     }
