@@ -201,6 +201,11 @@ impl Default for NewtonSettings {
 pub struct Scale {
     pub force: f64,
     pub roundoff: f64,
+    /// Round-off the floor adds at a frozen iterate, one whose last increment moved no
+    /// coordinate by more than a few ulps, so that no iteration can change it any more:
+    /// terms whose ulp sensitivity `roundoff` leaves out, counted only there (counted
+    /// everywhere they would stop solves earlier than they can converge).
+    pub frozen: f64,
 }
 
 /// A nonlinear problem on the free DOFs: r(u) = external − internal (− inertia − damping)
@@ -407,7 +412,8 @@ fn iterate(
         // are noise through a direction softer than K's round-off (a 100-stage tower's
         // measure structure, lowest eigenvalue ~1e-17 of its largest, wandered 90
         // iterations there).
-        if res <= tolerance && (iteration == 0 || increment <= increment_tolerance || stalled) {
+        let converged = res <= tolerance && (iteration == 0 || increment <= increment_tolerance || stalled);
+        if converged || (iteration > 0 && res <= tolerance + scale.frozen && frozen(increment, u)) {
             if on_held && iteration > 0 {
                 ws.held.record(true);
             }
@@ -466,6 +472,18 @@ fn iterate(
     }
     unreachable!("the loop returns at its last iteration")
 }
+
+/// Whether an increment of max-norm `increment` at `u` moved no coordinate by more than
+/// [`FROZEN_ULPS`] ulps of the largest one.
+fn frozen(increment: f64, u: &[f64]) -> bool {
+    let largest = u.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    increment <= FROZEN_ULPS * f64::EPSILON * largest
+}
+
+/// An ulp of the largest coordinate is ε to 2ε times it; an increment of a few is the
+/// round-off of the solve itself (the 105 × 105 grid's stalled steps: 1.42e-14 m at
+/// coordinates of 64 m, one ulp), where a step that can still move is orders above.
+const FROZEN_ULPS: f64 = 4.0;
 
 /// Most tenfold increases of the shift τ before giving up: from τ0 = (force scale)/(model
 /// size), a few N/m, 30 reach 1e30 τ0, beyond any stiffness a model has.
@@ -598,6 +616,7 @@ mod tests {
             Scale {
                 force: self.a,
                 roundoff: 0.0,
+                frozen: 0.0,
             }
         }
 
@@ -695,7 +714,11 @@ mod tests {
         fn residual(&mut self, _u: &[f64], r: &mut [f64]) -> Scale {
             r.copy_from_slice(if self.calls == 0 { &self.first } else { &self.later });
             self.calls += 1;
-            Scale { force: 1.0, roundoff: 0.0 }
+            Scale {
+                force: 1.0,
+                roundoff: 0.0,
+                frozen: 0.0,
+            }
         }
 
         fn tangent(&mut self, k: &mut dyn TangentSink) {

@@ -101,6 +101,7 @@ impl<'a> Assembly<'a> {
         Scale {
             force,
             roundoff: 64.0 * f64::EPSILON * stiff,
+            frozen: 0.0,
         }
     }
 
