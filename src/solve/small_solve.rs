@@ -124,7 +124,7 @@ unsafe fn factor_fused(a: &mut Mat<f64>) -> Result<(), usize> {
 const ROWS: usize = 16;
 
 /// Left-looking Cholesky, two columns at a time. Columns j and j + 1 take the terms
-/// k < j together, in blocks of [`ROWS`] rows (then of 4) aligned to the columns' end,
+/// k < j together, in blocks of [`ROWS`] rows (then of 8 and 4) aligned to the columns' end,
 /// their sums held in registers across k, each l_ik loaded once for both; then column j
 /// is finished, and column j + 1 takes its term k = j and is finished. Where the first
 /// block reaches above the diagonal (up to three rows), those entries of the upper
@@ -154,9 +154,12 @@ fn factor<const FUSED: bool>(a: &mut Mat<f64>) -> Result<(), usize> {
                     update::<FUSED, ROWS>(&column, j, i, c0, c1.as_deref_mut());
                     i += ROWS;
                 }
-                while i < n {
+                if i + 8 <= n {
+                    update::<FUSED, 8>(&column, j, i, c0, c1.as_deref_mut());
+                    i += 8;
+                }
+                if i < n {
                     update::<FUSED, 4>(&column, j, i, c0, c1.as_deref_mut());
-                    i += 4;
                 }
             }
             // n < 4: entry by entry.
