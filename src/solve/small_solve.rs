@@ -64,12 +64,22 @@ fn mul_add<const FUSED: bool>(a: f64, b: f64, c: f64) -> f64 {
 #[inline(always)]
 fn solve<const FUSED: bool>(l: &Mat<f64>, inv_diag: &[f64], x: &mut [f64]) {
     let n = x.len();
-    for j in 0..n {
-        let yj = x[j] * inv_diag[j];
-        x[j] = yj;
-        for (xi, &lij) in x[j + 1..].iter_mut().zip(&l.col_as_slice(j)[j + 1..]) {
-            *xi = mul_add::<FUSED>(-yj, lij, *xi);
+    // Two columns at a time (each x_i takes column j's term, then column j + 1's, as one
+    // column at a time would): half the passes over x.
+    let mut j = 0;
+    while j + 1 < n {
+        let (c0, c1) = (l.col_as_slice(j), l.col_as_slice(j + 1));
+        let y0 = x[j] * inv_diag[j];
+        x[j] = y0;
+        let y1 = mul_add::<FUSED>(-y0, c0[j + 1], x[j + 1]) * inv_diag[j + 1];
+        x[j + 1] = y1;
+        for ((xi, &a), &b) in x[j + 2..].iter_mut().zip(&c0[j + 2..]).zip(&c1[j + 2..]) {
+            *xi = mul_add::<FUSED>(-y1, b, mul_add::<FUSED>(-y0, a, *xi));
         }
+        j += 2;
+    }
+    if j < n {
+        x[j] *= inv_diag[j];
     }
     for j in (0..n).rev() {
         x[j] = (x[j] - dot::<FUSED>(&l.col_as_slice(j)[j + 1..], &x[j + 1..])) * inv_diag[j];
