@@ -11,7 +11,7 @@ use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::{factor, solve};
 use faer::{Conj, Mat, Par};
 use std::hint::black_box;
-use tsim::solve::small_solve::cholesky_solve_in_place;
+use tsim::solve::small_solve::{cholesky_in_place, cholesky_solve_in_place};
 
 /// CPU time this thread has run [s] (Linux: the first field of schedstat, in ns).
 fn thread_cpu() -> f64 {
@@ -59,7 +59,10 @@ fn main() {
     } else {
         sizes
     };
-    println!("{:>5} {:>13} {:>13} {:>13}", "n", "faer factor", "loops solve", "faer solve");
+    println!(
+        "{:>5} {:>13} {:>13} {:>13} {:>13}",
+        "n", "faer factor", "loops factor", "loops solve", "faer solve"
+    );
     for n in sizes {
         let a = spd(n);
         let rhs = vec![1.0; n];
@@ -80,6 +83,11 @@ fn main() {
             )
             .expect("SPD");
         });
+        let mut mine = Mat::<f64>::zeros(n, n);
+        let loops_factor = per_call(|| {
+            mine.copy_from(&a);
+            cholesky_in_place(black_box(&mut mine)).expect("SPD");
+        });
         let inv_diag: Vec<f64> = (0..n).map(|j| 1.0 / work[(j, j)]).collect();
         let mut x = rhs.clone();
         let loops_solve = per_call(|| {
@@ -92,6 +100,12 @@ fn main() {
             solve::solve_in_place_with_conj(work.as_ref(), Conj::No, black_box(y.as_mut()), Par::Seq, MemStack::new(&mut mem));
         });
         let us = |t: f64| format!("{:.2} µs", t * 1e6);
-        println!("{n:>5} {:>13} {:>13} {:>13}", us(faer_factor), us(loops_solve), us(faer_solve));
+        println!(
+            "{n:>5} {:>13} {:>13} {:>13} {:>13}",
+            us(faer_factor),
+            us(loops_factor),
+            us(loops_solve),
+            us(faer_solve)
+        );
     }
 }

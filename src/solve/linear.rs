@@ -19,7 +19,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
 
 use super::backoff::Backoff;
-use super::small_solve::{cholesky_solve_in_place, SMALL_SOLVE};
+use super::small_solve::{cholesky_in_place, cholesky_solve_in_place, SMALL_FACTOR, SMALL_SOLVE};
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum LinearError {
@@ -55,6 +55,13 @@ pub trait TangentSink {
                 }
             }
         }
+    }
+    /// Adds a two-node element's 6×6 block [[k, −k], [−k, k]] on the DOFs `free` (as
+    /// [`TangentSink::add_element`], `k` by rows): what a bar element gives. The default
+    /// expands the block; a sink may add ±k without forming it.
+    fn add_pair(&mut self, e: usize, free: &[Option<usize>; 6], k: &[[f64; 3]; 3]) {
+        let block = std::array::from_fn(|r| std::array::from_fn(|c| if (r < 3) == (c < 3) { k[r % 3][c % 3] } else { -k[r % 3][c % 3] }));
+        self.add_element(e, free, &block);
     }
 }
 
@@ -96,8 +103,8 @@ enum Factored {
 const SINGULAR_PIVOT: f64 = 1e-13;
 
 /// Dense solver: Cholesky first (the Newmark step matrix and a stable structure's K_T are
-/// symmetric positive definite, and Cholesky costs half an LU; its solves up to
-/// [`SMALL_SOLVE`] rows by the plain loops of `small_solve.rs`), partial-pivoting LU when
+/// symmetric positive definite, and Cholesky costs half an LU; up to [`SMALL_FACTOR`]
+/// rows factored and up to [`SMALL_SOLVE`] solved by the plain loops of `small_solve.rs`), partial-pivoting LU when
 /// Cholesky fails (an indefinite static state). With row pivoting only, U's j-th pivot
 /// belongs to column j, i.e. to free DOF j, which is what a singularity report names.
 pub struct DenseSolver {
@@ -137,6 +144,32 @@ impl TangentSink for DenseSolver {
     fn add(&mut self, row: usize, col: usize, value: f64) {
         self.k[(row, col)] += value;
     }
+
+    /// ±k straight into the matrix's columns (each entry receives the one addition it
+    /// would from the expanded block, so the sum is the same to the last bit).
+    fn add_pair(&mut self, _e: usize, free: &[Option<usize>; 6], k: &[[f64; 3]; 3]) {
+        let (n, stride) = (self.k.nrows(), self.k.col_stride() as usize);
+        let storage = self.k.as_mut();
+        for (end, cols) in free.chunks_exact(3).enumerate() {
+            for (c, col) in cols.iter().enumerate() {
+                let Some(col) = *col else { continue };
+                // SAFETY: `col` < n is a column of the n × n matrix, whose column `col`
+                // is the n entries from col · stride of its storage.
+                let column = unsafe { std::slice::from_raw_parts_mut(storage.as_ptr_mut().add(col * stride), n) };
+                for (other, rows) in free.chunks_exact(3).enumerate() {
+                    for (r, row) in rows.iter().enumerate() {
+                        if let Some(row) = *row {
+                            if end == other {
+                                column[row] += k[r][c];
+                            } else {
+                                column[row] -= k[r][c];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 impl TangentSolver for DenseSolver {
@@ -145,14 +178,24 @@ impl TangentSolver for DenseSolver {
     }
 
     fn cholesky(&mut self) -> bool {
-        self.work.copy_from(&self.k);
-        let llt = llt_factor::cholesky_in_place(
-            self.work.as_mut(),
-            Default::default(),
-            Par::Seq,
-            MemStack::new(&mut self.mem),
-            Default::default(),
-        );
+        // Column by column (contiguous slices: a memcpy each; faer's `copy_from` goes
+        // entry by entry, a fifth of a 52 × 52 factorization's cost).
+        for j in 0..self.k.ncols() {
+            self.work.col_as_slice_mut(j).copy_from_slice(self.k.col_as_slice(j));
+        }
+        let llt = if self.k.nrows() <= SMALL_FACTOR {
+            cholesky_in_place(&mut self.work).map_err(|_| ())
+        } else {
+            llt_factor::cholesky_in_place(
+                self.work.as_mut(),
+                Default::default(),
+                Par::Seq,
+                MemStack::new(&mut self.mem),
+                Default::default(),
+            )
+            .map(|_| ())
+            .map_err(|_| ())
+        };
         if llt.is_err() {
             self.factored = Factored::None;
             return false;
@@ -627,6 +670,33 @@ mod tests {
                 "zero DOF {k}: {err:?}"
             );
         }
+    }
+
+    /// The dense solver's `add_pair` (±k straight into its columns) against the expanded
+    /// 6×6 block through `add` (the trait's default, what a `Mat` receives): two pairs
+    /// sharing DOFs, one end partly fixed, must give the same matrix to the last bit (the
+    /// same one addition per entry and pair, in the same order).
+    #[test]
+    fn dense_add_pair_is_the_expanded_block() {
+        let n = 5;
+        let k1 = [[1.5, -0.25, 0.125], [-0.25, 2.0, 0.375], [0.125, 0.375, 3.0]];
+        let k2 = [[0.1, 0.2, 0.3], [0.2, 0.7, -0.4], [0.3, -0.4, 0.9]];
+        let free1 = [Some(0), Some(1), Some(2), Some(3), None, Some(4)];
+        let free2 = [Some(4), Some(2), None, Some(1), Some(0), Some(3)];
+        let mut dense = DenseSolver::new(n);
+        let mut reference = Mat::<f64>::zeros(n, n);
+        for (free, k) in [(&free1, &k1), (&free2, &k2)] {
+            dense.add_pair(0, free, k);
+            reference.add_pair(0, free, k);
+        }
+        for i in 0..n {
+            for j in 0..n {
+                assert_eq!(dense.k[(i, j)].to_bits(), reference[(i, j)].to_bits(), "entry ({i}, {j})");
+            }
+        }
+        // Free DOFs 0 and 3: the two ends' x in the first pair (−k1[0][0]), the second end's
+        // y and z in the second (+k2[1][2]).
+        assert_eq!(reference[(0, 3)], -1.5 + k2[1][2]);
     }
 
     #[test]

@@ -1,16 +1,17 @@
-//! The two triangular solves with a dense Cholesky factor, written out as plain loops for
-//! small matrices.
+//! A dense Cholesky factorization and its two triangular solves, written out as plain
+//! loops for small matrices.
 //!
-//! Why: at the sizes of a small model's step matrix (tens of DOFs) faer's triangular
-//! solve, a blocked recursive kernel built for large matrices, spends most of its time in
-//! per-call set-up; with tangent reuse a Newton iteration is a residual and these two
-//! solves, so that set-up was a fifth of a small deployment's time. These loops have
-//! none: both run down the contiguous columns of faer's factor L (column-major, lower
-//! triangle), the forward one as axpys, the backward one as dot products, and they
-//! multiply by 1/L[j, j] instead of dividing. Where the CPU has AVX2 and FMA (detected at
-//! run time, as faer does) they are compiled for them, with fused multiply-adds. faer's
-//! factorization itself stays: it is faster than plain loops at every size
-//! (`examples/bench_dense.rs` measures both, and where the solves cross).
+//! Why: at the sizes of a small model's step matrix (tens of DOFs) faer's kernels, built
+//! for large matrices, spend much of their time in per-call set-up; with tangent reuse a
+//! Newton iteration is a residual and these two solves, so that set-up was a fifth of a
+//! small deployment's time, and faer's factorization of a 52 × 52 step matrix another
+//! fifth. The solves run down the contiguous columns of the factor L (column-major,
+//! lower triangle), the forward one as axpys, the backward one as dot products, and they
+//! multiply by 1/L[j, j] instead of dividing. The factorization does faer's own
+//! arithmetic (below [`SMALL_FACTOR`] rows, where faer runs one SIMD kernel) without its
+//! set-up. Where the CPU has AVX2 and FMA (detected at run time, as faer does) they are
+//! compiled for them, with fused multiply-adds. `examples/bench_dense.rs` measures both
+//! against faer.
 
 use faer::Mat;
 
@@ -19,6 +20,14 @@ use faer::Mat;
 /// against faer 0.27 vs 0.33 µs at n = 16, 1.17 vs 1.48 µs at 52, 3.99 vs 4.76 µs at 128,
 /// 8.25 vs 8.50 µs at 200, then slower (17.2 vs 16.1 µs at 300).
 pub const SMALL_SOLVE: usize = 200;
+
+/// Largest matrix (rows) the dense solver factors with [`cholesky_in_place`]: faer's
+/// recursion threshold (`LdltParams::default().recursion_threshold`), up to which faer
+/// factors with the single SIMD kernel whose arithmetic `cholesky_in_place` repeats, so
+/// that the factor is bit for bit the same. `examples/bench_dense.rs` (CPU time of one
+/// factorization, 2-core AMD EPYC, loaded): 0.37 vs 0.37 µs at n = 16, 1.25 vs 1.23 µs at
+/// 32, 2.56 vs 4.75 µs at 52, 3.99 vs 5.97 µs at 64.
+pub const SMALL_FACTOR: usize = 64;
 
 /// Solves L Lᵀ x = b in place (`x` holds b on entry), L the lower triangle of `l` (as
 /// faer's Cholesky factor leaves it) and `inv_diag` = 1 / L[j, j].
@@ -55,12 +64,22 @@ fn mul_add<const FUSED: bool>(a: f64, b: f64, c: f64) -> f64 {
 #[inline(always)]
 fn solve<const FUSED: bool>(l: &Mat<f64>, inv_diag: &[f64], x: &mut [f64]) {
     let n = x.len();
-    for j in 0..n {
-        let yj = x[j] * inv_diag[j];
-        x[j] = yj;
-        for (xi, &lij) in x[j + 1..].iter_mut().zip(&l.col_as_slice(j)[j + 1..]) {
-            *xi = mul_add::<FUSED>(-yj, lij, *xi);
+    // Two columns at a time (each x_i takes column j's term, then column j + 1's, as one
+    // column at a time would): half the passes over x.
+    let mut j = 0;
+    while j + 1 < n {
+        let (c0, c1) = (l.col_as_slice(j), l.col_as_slice(j + 1));
+        let y0 = x[j] * inv_diag[j];
+        x[j] = y0;
+        let y1 = mul_add::<FUSED>(-y0, c0[j + 1], x[j + 1]) * inv_diag[j + 1];
+        x[j + 1] = y1;
+        for ((xi, &a), &b) in x[j + 2..].iter_mut().zip(&c0[j + 2..]).zip(&c1[j + 2..]) {
+            *xi = mul_add::<FUSED>(-y1, b, mul_add::<FUSED>(-y0, a, *xi));
         }
+        j += 2;
+    }
+    if j < n {
+        x[j] *= inv_diag[j];
     }
     for j in (0..n).rev() {
         x[j] = (x[j] - dot::<FUSED>(&l.col_as_slice(j)[j + 1..], &x[j + 1..])) * inv_diag[j];
@@ -83,6 +102,150 @@ fn dot<const FUSED: bool>(a: &[f64], b: &[f64]) -> f64 {
         }
     }
     ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7])) + tail
+}
+
+/// Factors the SPD matrix in `a`'s lower triangle in place into L (L Lᵀ = A, lower
+/// triangle; the upper triangle is left with values nobody reads), the same arithmetic as
+/// faer's kernel for n ≤ 64 (`faer::linalg::cholesky::ldlt::factor`, its SIMD path):
+/// column by column, each entry a_ij − Σ_{k<j} l_jk l_ik summed in k order with fused
+/// multiply-adds, then multiplied by 1/√d_j, the diagonal too (so L[j, j] = d_j·(1/√d_j)).
+/// The factor is therefore bit for bit faer's where faer runs its AVX2/FMA kernel; what
+/// differs is the cost, faer's set-up of views and masked loads at every column of a
+/// small matrix. `Err(j)`: the pivot of column j is not positive (or not finite).
+pub fn cholesky_in_place(a: &mut Mat<f64>) -> Result<(), usize> {
+    debug_assert_eq!(a.nrows(), a.ncols());
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU has AVX2 and FMA (just detected; std caches the detection).
+        return unsafe { factor_fused(a) };
+    }
+    factor::<false>(a)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+unsafe fn factor_fused(a: &mut Mat<f64>) -> Result<(), usize> {
+    factor::<true>(a)
+}
+
+/// Rows updated together: four AVX2 vectors of accumulators per column.
+const ROWS: usize = 16;
+
+/// Left-looking Cholesky, two columns at a time. Columns j and j + 1 take the terms
+/// k < j together, in blocks of [`ROWS`] rows (then of 8 and 4) aligned to the columns' end,
+/// their sums held in registers across k, each l_ik loaded once for both; then column j
+/// is finished, and column j + 1 takes its term k = j and is finished. Where the first
+/// block reaches above the diagonal (up to three rows), those entries of the upper
+/// triangle get values that are never read (faer's kernel does the same).
+#[inline(always)]
+fn factor<const FUSED: bool>(a: &mut Mat<f64>) -> Result<(), usize> {
+    let n = a.nrows();
+    let stride = a.col_stride() as usize;
+    let p = a.as_ptr_mut();
+    let mut j = 0;
+    while j < n {
+        // SAFETY: column k occupies [k·stride, k·stride + n) of the matrix's storage,
+        // stride ≥ n, so the columns k < j read (`done`) and the columns j and j + 1
+        // written are disjoint, and `a` is borrowed mutably for the whole loop.
+        let (left, c0, c1) = unsafe {
+            let left = std::slice::from_raw_parts(p as *const f64, j * stride);
+            let c0 = std::slice::from_raw_parts_mut(p.add(j * stride), n);
+            let c1 = (j + 1 < n).then(|| std::slice::from_raw_parts_mut(p.add((j + 1) * stride), n));
+            (left, c0, c1)
+        };
+        let column = |k: usize| &left[k * stride..k * stride + n];
+        let mut c1 = c1;
+        match n.checked_sub((n - j).div_ceil(4) * 4) {
+            Some(first) => {
+                let mut i = first;
+                while i + ROWS <= n {
+                    update::<FUSED, ROWS>(&column, j, i, c0, c1.as_deref_mut());
+                    i += ROWS;
+                }
+                if i + 8 <= n {
+                    update::<FUSED, 8>(&column, j, i, c0, c1.as_deref_mut());
+                    i += 8;
+                }
+                if i < n {
+                    update::<FUSED, 4>(&column, j, i, c0, c1.as_deref_mut());
+                }
+            }
+            // n < 4: entry by entry.
+            None => {
+                for i in j..n {
+                    c0[i] = (0..j).fold(c0[i], |t, k| mul_add::<FUSED>(-column(k)[j], column(k)[i], t));
+                    if let Some(c1) = c1.as_deref_mut() {
+                        c1[i] = (0..j).fold(c1[i], |t, k| mul_add::<FUSED>(-column(k)[j + 1], column(k)[i], t));
+                    }
+                }
+            }
+        }
+        finish(c0, j)?;
+        if let Some(c1) = c1 {
+            let s = -c0[j + 1];
+            for (t, &l) in c1[j + 1..].iter_mut().zip(&c0[j + 1..]) {
+                *t = mul_add::<FUSED>(s, l, *t);
+            }
+            finish(c1, j + 1)?;
+        }
+        j += 2;
+    }
+    Ok(())
+}
+
+/// Column j, its terms k < j subtracted: the pivot's root, and the column from the
+/// diagonal down multiplied by its inverse.
+#[inline(always)]
+fn finish(col: &mut [f64], j: usize) -> Result<(), usize> {
+    let d = col[j];
+    let root = d.sqrt();
+    if !(d > 0.0) || !root.is_finite() {
+        return Err(j);
+    }
+    let inv = 1.0 / root;
+    col[j..].iter_mut().for_each(|x| *x *= inv);
+    Ok(())
+}
+
+/// Rows i … i + R of column j (`c0`) and of column j + 1 (`c1`, if any) less
+/// Σ_{k<j} l_jk l_ik (and l_(j+1)k l_ik), in k order.
+#[inline(always)]
+fn update<'l, const FUSED: bool, const R: usize>(
+    column: &impl Fn(usize) -> &'l [f64],
+    j: usize,
+    i: usize,
+    c0: &mut [f64],
+    c1: Option<&mut [f64]>,
+) {
+    let mut acc0: [f64; R] = c0[i..i + R].try_into().expect("R entries");
+    match c1 {
+        Some(c1) => {
+            let mut acc1: [f64; R] = c1[i..i + R].try_into().expect("R entries");
+            for k in 0..j {
+                let lk = column(k);
+                let (s0, s1) = (-lk[j], -lk[j + 1]);
+                let rows: &[f64; R] = lk[i..i + R].try_into().expect("R entries");
+                for r in 0..R {
+                    acc0[r] = mul_add::<FUSED>(s0, rows[r], acc0[r]);
+                    acc1[r] = mul_add::<FUSED>(s1, rows[r], acc1[r]);
+                }
+            }
+            c1[i..i + R].copy_from_slice(&acc1);
+        }
+        None => {
+            for k in 0..j {
+                let lk = column(k);
+                let s0 = -lk[j];
+                let rows: &[f64; R] = lk[i..i + R].try_into().expect("R entries");
+                for r in 0..R {
+                    acc0[r] = mul_add::<FUSED>(s0, rows[r], acc0[r]);
+                }
+            }
+        }
+    }
+    c0[i..i + R].copy_from_slice(&acc0);
 }
 
 #[cfg(test)]
@@ -148,6 +311,82 @@ mod tests {
                         );
                     }
                 }
+            }
+        }
+    }
+
+    /// faer's Cholesky of `a`, or the index of its failed pivot.
+    fn faer_factor(a: &Mat<f64>) -> Result<Mat<f64>, usize> {
+        let n = a.nrows();
+        let mut l = a.clone();
+        let mut mem = MemBuffer::new(llt_factor::cholesky_in_place_scratch::<f64>(n, Par::Seq, Default::default()));
+        match llt_factor::cholesky_in_place(
+            l.as_mut(),
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut mem),
+            Default::default(),
+        ) {
+            Ok(_) => Ok(l),
+            Err(llt_factor::LltError::NonPositivePivot { index }) => Err(index),
+        }
+    }
+
+    /// Against faer's factor, lower triangle, on random SPD matrices of every size up to
+    /// [`SMALL_FACTOR`] (both parities of n against the two-column steps, n < 4 entry by
+    /// entry, blocks of 16 and of 4), well- and ill-conditioned (see
+    /// `matches_faer_on_random_spd_matrices`). Where the CPU has AVX2 and FMA both run the
+    /// same operations in the same order, so the factors must be equal bit for bit (what
+    /// keeps every result of a small model the same as with faer's kernel); elsewhere
+    /// faer's scalar fallback sums before it subtracts, and the factors agree to the
+    /// backward-stable bound κ n ε relative to the largest entry (1e-7, as above). The
+    /// unfused loops are checked against that bound too.
+    #[test]
+    fn factor_is_faers_bit_for_bit() {
+        #[cfg(target_arch = "x86_64")]
+        let exact = std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma");
+        #[cfg(not(target_arch = "x86_64"))]
+        let exact = false;
+        for n in (1..=SMALL_FACTOR).filter(|&n| n <= 20 || n % 7 == 0 || n >= SMALL_FACTOR - 2) {
+            for (seed, c) in [(n as u64 + 11, 1.0), (5 * n as u64 + 3, 1e-6)] {
+                let a = random_spd(n, seed, c);
+                let reference = faer_factor(&a).expect("SPD");
+                let (mut dispatched, mut plain) = (a.clone(), a.clone());
+                cholesky_in_place(&mut dispatched).expect("SPD");
+                factor::<false>(&mut plain).expect("SPD");
+                let scale = (0..n).map(|i| reference[(i, i)].abs()).fold(0.0, f64::max);
+                for j in 0..n {
+                    for i in j..n {
+                        let r = reference[(i, j)];
+                        if exact {
+                            assert_eq!(dispatched[(i, j)].to_bits(), r.to_bits(), "n = {n}, c = {c}: L[{i}, {j}]");
+                        }
+                        for (what, l) in [("dispatched", &dispatched), ("unfused", &plain)] {
+                            assert!(
+                                (l[(i, j)] - r).abs() <= 1e-7 * scale,
+                                "{what}, n = {n}, c = {c}: L[{i}, {j}] = {} vs faer {r}",
+                                l[(i, j)]
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// A matrix that is not positive definite fails at the pivot faer's fails at: the
+    /// random SPD matrix with its entry (p, p) lowered by more than its whole Schur
+    /// complement (its own value), at every p of a few sizes, and a NaN on the diagonal.
+    #[test]
+    fn an_indefinite_matrix_fails_at_faers_pivot() {
+        for n in [1, 3, 4, 17, 52, SMALL_FACTOR] {
+            for p in [0, n / 2, n - 1] {
+                let mut a = random_spd(n, 7 * n as u64, 1.0);
+                a[(p, p)] -= 2.0 * a[(p, p)];
+                assert_eq!(cholesky_in_place(&mut a.clone()), Err(p), "n = {n}, p = {p}");
+                assert_eq!(faer_factor(&a).err(), Some(p), "n = {n}, p = {p}");
+                a[(p, p)] = f64::NAN;
+                assert_eq!(cholesky_in_place(&mut a.clone()), Err(p), "NaN: n = {n}, p = {p}");
             }
         }
     }

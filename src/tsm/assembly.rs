@@ -1,4 +1,4 @@
-use super::{assemble_tangent, internal_force, member_states, DofMap, Elements, MemberState};
+use super::{assemble_tangent, DofMap, Elements, MemberState};
 use crate::model::Model;
 use crate::solve::{Scale, TangentSink};
 use nalgebra::Vector3;
@@ -17,6 +17,8 @@ pub struct Assembly<'a> {
     pub p: Vec<f64>,
     /// Per node, its largest |coordinate|: what a length's round-off grows with ([`Self::scale`]).
     reach: Vec<f64>,
+    /// Over the members: the largest |N|, and the largest |dN/dl|·(reach) + |N| ([`Self::scale`]).
+    largest: (f64, f64),
 }
 
 impl<'a> Assembly<'a> {
@@ -29,18 +31,37 @@ impl<'a> Assembly<'a> {
             states: Vec::new(),
             p: vec![0.0; 3 * model.node_count()],
             reach: vec![0.0; model.node_count()],
+            largest: (0.0, 0.0),
         };
         a.update();
         a
     }
 
-    /// Re-evaluates member states and internal forces at the current `x`.
+    /// Re-evaluates member states, internal forces (over all 3n node directions, supported
+    /// ones included: there it is the support reaction needed) and the members' share of
+    /// [`Self::scale`] at the current `x`, in one pass over the members.
     pub fn update(&mut self) {
-        member_states(self.model, self.elements, &self.x, &mut self.states);
-        internal_force(self.model, &self.states, &mut self.p);
         for (r, x) in self.reach.iter_mut().zip(&self.x) {
             *r = x.amax();
         }
+        self.p.fill(0.0);
+        let members = &self.model.members;
+        self.states.resize(members.len(), MemberState::default());
+        let (mut force, mut stiff) = (0.0_f64, 0.0_f64);
+        let laws = self.elements.laws.iter().zip(&self.elements.rest);
+        for ((s, mem), (law, &l0)) in self.states.iter_mut().zip(members).zip(laws) {
+            let [a, b] = mem.nodes;
+            *s = MemberState::between(self.x[a], self.x[b], &**law, l0);
+            let f = s.force * s.dir;
+            for k in 0..3 {
+                self.p[3 * a + k] -= f[k];
+                self.p[3 * b + k] += f[k];
+            }
+            let reach = self.reach[a].max(self.reach[b]).max(s.length);
+            force = force.max(s.force.abs());
+            stiff = stiff.max(s.stiffness.abs() * reach + s.force.abs());
+        }
+        self.largest = (force, stiff);
     }
 
     /// Writes the free coordinates `u` into `x` and re-evaluates.
@@ -89,17 +110,9 @@ impl<'a> Assembly<'a> {
     /// the distance from the origin, e.g. up a tall tower). 64 ε (|dN/dl|·that + |N|),
     /// 64 leaving room for the summation over a node's members.
     pub fn scale(&self, applied: f64) -> Scale {
-        let (force, stiff) = self
-            .model
-            .members
-            .iter()
-            .zip(&self.states)
-            .fold((applied, 0.0_f64), |(f, s), (mem, m)| {
-                let reach = self.reach[mem.nodes[0]].max(self.reach[mem.nodes[1]]).max(m.length);
-                (f.max(m.force.abs()), s.max(m.stiffness.abs() * reach + m.force.abs()))
-            });
+        let (force, stiff) = self.largest;
         Scale {
-            force,
+            force: applied.max(force),
             roundoff: 64.0 * f64::EPSILON * stiff,
             frozen: 0.0,
         }

@@ -65,28 +65,24 @@ pub use crate::solve::TangentSink;
 pub fn member_states(model: &Model, elements: &Elements, x: &[Vector3<f64>], states: &mut Vec<MemberState>) {
     states.clear();
     states.extend(model.members.iter().enumerate().map(|(m, mem)| {
-        let d = x[mem.nodes[1]] - x[mem.nodes[0]];
+        let [a, b] = mem.nodes;
+        MemberState::between(x[a], x[b], &*elements.laws[m], elements.rest[m])
+    }));
+}
+
+impl MemberState {
+    /// A member from `a` to `b` with force law `law` and rest length `l0`.
+    #[inline(always)]
+    pub fn between(a: Vector3<f64>, b: Vector3<f64>, law: &dyn ForceLaw, l0: f64) -> Self {
+        let d = b - a;
         let length = d.norm();
-        let e = elements.laws[m].eval(length, elements.rest[m]);
+        let e = law.eval(length, l0);
         MemberState {
             length,
             dir: d / length,
             force: e.force,
             stiffness: e.stiffness,
             curvature: e.curvature,
-        }
-    }));
-}
-
-/// Internal force vector over all 3n node directions (supported ones included: there it
-/// is the support reaction needed).
-pub fn internal_force(model: &Model, states: &[MemberState], p: &mut [f64]) {
-    p.fill(0.0);
-    for (mem, s) in model.members.iter().zip(states) {
-        let f = s.force * s.dir;
-        for k in 0..3 {
-            p[3 * mem.nodes[0] + k] -= f[k];
-            p[3 * mem.nodes[1] + k] += f[k];
         }
     }
 }
@@ -117,16 +113,7 @@ pub fn assemble_tangents(model: &Model, dofs: &DofMap, terms: &[(&[MemberState],
 /// on the free DOFs of its nodes.
 pub fn add_member_block(dofs: &DofMap, e: usize, [a, b]: [usize; 2], k: &Matrix3<f64>, sink: &mut (impl TangentSink + ?Sized)) {
     let free = [0, 1, 2, 3, 4, 5].map(|i| dofs.free(if i < 3 { a } else { b }, i % 3));
-    let block = std::array::from_fn(|r| {
-        std::array::from_fn(|c| {
-            if (r < 3) == (c < 3) {
-                k[(r % 3, c % 3)]
-            } else {
-                -k[(r % 3, c % 3)]
-            }
-        })
-    });
-    sink.add_element(e, &free, &block);
+    sink.add_pair(e, &free, &std::array::from_fn(|r| std::array::from_fn(|c| k[(r, c)])));
 }
 
 /// K_T's shape for the sparse solver: every (row, column) of free DOFs it can fill (the
