@@ -45,6 +45,8 @@ impl Neighbours {
         if !diagonal.is_finite() {
             // Non-finite positions: no list to keep; the stage reports them.
             self.at.clear();
+            self.pairs.clear();
+            self.distance.clear();
             return struts.nearest(x, &mut self.ws, near);
         }
         let two_r = 2.0 * struts.r_max;
