@@ -61,9 +61,7 @@ impl Bounds {
         let last = self.last;
         let order = last.into_iter().chain((0..struts.pairs.len()).filter(|&k| Some(k) != last));
         for k in order {
-            let (i, j) = struts.pairs[k];
-            let bound = self.base[k] - self.travel[i as usize] - self.travel[j as usize];
-            if !(bound > smallest.max(0.0)) {
+            if self.may_be_within(struts, k, smallest.max(0.0)) {
                 let tested = self.test(struts, k, x);
                 smallest = smallest.min(tested.clearance);
                 near.push(tested);
@@ -73,6 +71,13 @@ impl Bounds {
         // `pairs` is sorted (built in order of i, then j).
         self.last = struts.pairs.binary_search(&pair).ok();
         Some(struts.describe(pair, x))
+    }
+
+    /// Whether pair `k`'s clearance may be ≤ `clearance` now: its bound does not rule it out.
+    pub fn may_be_within(&self, struts: &Struts, k: usize, clearance: f64) -> bool {
+        let (i, j) = struts.pairs[k];
+        let bound = self.base[k] - self.travel[i as usize] - self.travel[j as usize];
+        !(bound > clearance)
     }
 
     /// Pair `k`'s clearance at `x`, from which its bound starts again.

@@ -61,9 +61,6 @@ pub struct Tracker {
     /// Pairs touching at the previous step and at this one, sorted by strut indices.
     touching: Vec<PairClearance>,
     touching_now: Vec<PairClearance>,
-    /// With all pairs, each pair's side (orientation) at the previous step, in the order of
-    /// `Struts::pairs`: computed once per step, not twice.
-    sides: Vec<i8>,
     /// Events since the last [`Tracker::clear_events`].
     events: Vec<Event>,
     /// Each strut's box swept between the previous step and this one.
@@ -100,7 +97,6 @@ impl Tracker {
             previous_time: 0.0,
             touching: Vec::with_capacity(room),
             touching_now: Vec::with_capacity(room),
-            sides: Vec::with_capacity(struts.pairs.len()),
             events: Vec::with_capacity(2 * room),
             boxes: Vec::with_capacity(struts.len()),
             struts,
@@ -159,7 +155,7 @@ impl Tracker {
     }
 
     /// Pairs whose axes crossed between the previous step and `x`, whose strut ends moved
-    /// at most `travel` (at the first step, only the sides are kept).
+    /// at most `travel` (none at the first step).
     fn pass_throughs(&mut self, x: &[Vector3<f64>], step: usize, time: f64, travel: f64) {
         let Tracker {
             struts,
@@ -167,14 +163,10 @@ impl Tracker {
             previous,
             previous_time,
             events,
-            sides,
             boxes,
             ..
         } = self;
         if previous.is_empty() {
-            let side = |&(i, j): &(u32, u32)| struts.segment(i, x).orientation(&struts.segment(j, x));
-            sides.clear();
-            sides.extend(struts.pairs.iter().map(side));
             return;
         }
         // Axes that cross meet inside the boxes swept by both between the steps.
@@ -200,15 +192,16 @@ impl Tracker {
             }
         };
         let side = |pair: (u32, u32), at: &[Vector3<f64>]| struts.segment(pair.0, at).orientation(&struts.segment(pair.1, at));
+        // A pair whose axes crossed is within twice the travel at the step's end.
         match pairs {
-            // Each pair's side kept from the previous step.
-            Pairs::All(_) => {
+            // The clearance bounds rule out most pairs (a tower's struts lie metres apart).
+            Pairs::All(bounds) => {
                 for (k, &pair) in struts.pairs.iter().enumerate() {
-                    let now = side(pair, x);
-                    check(pair, std::mem::replace(&mut sides[k], now), now);
+                    if bounds.may_be_within(struts, k, 2.0 * travel) {
+                        check(pair, side(pair, previous), side(pair, x));
+                    }
                 }
             }
-            // A pair whose axes crossed is within twice the travel at the step's end.
             Pairs::Listed(list) => {
                 for pair in list.within(2.0 * travel) {
                     check(pair, side(pair, previous), side(pair, x));
