@@ -7,7 +7,7 @@ use tsim::record::NoRecorder;
 use tsim::solve::{LinearSolverChoice, SparseSolver, TangentSolver};
 use tsim::stage::eigen::tangent_matrix;
 use tsim::stage::measure::MeasureSpec;
-use tsim::tsm::{block_product, scaled_blocks, tangent_sparsity, Assembly, DofMap, NodeSpace};
+use tsim::tsm::{block_product, scaled_blocks, tangent_sparsity, Assembly, DofMap, EndSlots};
 
 /// The paper case with a short deployment, once per solver: the sparse and the dense
 /// Cholesky solve the same linear systems, and both reuse factorizations (the default in
@@ -59,7 +59,7 @@ fn matrix_free_product_and_sparse_solve_match_dense() {
     let mut kv = vec![0.0; n];
     let mut blocks = vec![nalgebra::Matrix3::zeros(); asm.states.len()];
     scaled_blocks(&asm.states, 1.0, &mut blocks);
-    block_product(&model, &blocks, &dofs, &v, &mut kv, &mut NodeSpace::new(model.node_count()));
+    block_product(&blocks, &mut EndSlots::new(&model, &dofs), &v, &mut kv);
     let scale = (0..n).map(|i| k[(i, i)].abs()).fold(0.0, f64::max);
     for i in 0..n {
         let dense: f64 = (0..n).map(|j| k[(i, j)] * v[j]).sum();

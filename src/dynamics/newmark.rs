@@ -4,7 +4,7 @@ use crate::solve::{
 };
 use crate::tsm::{
     assemble_tangents, block_product, damping_moduli, member_damping_all, scaled_blocks, tangent_sparsity, taut_members, Assembly,
-    DampingModulus, MemberState, NodeSpace, ObjectiveDamping,
+    DampingModulus, EndSlots, MemberState, ObjectiveDamping,
 };
 use nalgebra::Matrix3;
 
@@ -137,8 +137,8 @@ pub struct Newmark<'a> {
     /// β k per member of the βK term's states ([`scaled_blocks`]; unused for `Objective`):
     /// re-formed when those states change, not at every residual.
     damp_blocks: Vec<Matrix3<f64>>,
-    /// The βK product's node buffers.
-    nodes: NodeSpace,
+    /// The members' free end directions, for the βK product.
+    ends: EndSlots,
     /// Per member, whether it was taut at the step's start, and its damping modulus at the
     /// current states on that branch (`Objective` only; [`DampingModulus`]).
     taut: Vec<bool>,
@@ -202,7 +202,7 @@ impl<'a> Newmark<'a> {
         let mut s = Newmark {
             damp_states: asm.states.clone(),
             damp_blocks: vec![Matrix3::zeros(); asm.states.len()],
-            nodes: NodeSpace::new(asm.model.node_count()),
+            ends: EndSlots::new(asm.model, asm.dofs),
             taut: vec![true; asm.states.len()],
             moduli: vec![DampingModulus::default(); asm.states.len()],
             symmetric_step: false,
@@ -317,7 +317,7 @@ impl<'a> Newmark<'a> {
                 beta: self.rayleigh.beta,
             }
             .add_force(out),
-            _ => block_product(asm.model, &self.damp_blocks, asm.dofs, v, out, &mut self.nodes),
+            _ => block_product(&self.damp_blocks, &mut self.ends, v, out),
         }
     }
 
@@ -682,7 +682,7 @@ mod tests {
                 assert_eq!(symmetrized, symmetric_below > 0.0, "{tangent:?}");
                 let v_frozen = problem.nm.v_next.clone();
                 let mut blocks = problem.nm.damp_blocks.clone();
-                let mut nodes = NodeSpace::new(problem.nm.asm.model.node_count());
+                let mut ends = EndSlots::new(problem.nm.asm.model, problem.nm.asm.dofs);
                 let h = 1e-6;
                 let (mut rp, mut rm, mut gp, mut gm) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
                 // The expected tangent, column by column, and the largest omitted term.
@@ -696,12 +696,12 @@ mod tests {
                     let nm = &*problem.nm;
                     gp.fill(0.0);
                     scaled_blocks(&nm.asm.states, nm.rayleigh.beta, &mut blocks);
-                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gp, &mut nodes);
+                    block_product(&blocks, &mut ends, &v_frozen, &mut gp);
                     problem.residual(&um, &mut rm);
                     let nm = &*problem.nm;
                     gm.fill(0.0);
                     scaled_blocks(&nm.asm.states, nm.rayleigh.beta, &mut blocks);
-                    block_product(nm.asm.model, &blocks, nm.asm.dofs, &v_frozen, &mut gm, &mut nodes);
+                    block_product(&blocks, &mut ends, &v_frozen, &mut gm);
                     for i in 0..n {
                         let exact = -(rp[i] - rm[i]) / (2.0 * h);
                         let omitted = (gp[i] - gm[i]) / (2.0 * h);
