@@ -63,7 +63,8 @@ pub struct Tracker {
     touching_now: Vec<PairClearance>,
     /// Events since the last [`Tracker::clear_events`].
     events: Vec<Event>,
-    /// Each strut's box swept between the previous step and this one.
+    /// Each strut's box swept between the previous step and this one (empty until a step
+    /// needs them).
     boxes: Vec<Aabb>,
 }
 
@@ -169,14 +170,20 @@ impl Tracker {
         if previous.is_empty() {
             return;
         }
-        // Axes that cross meet inside the boxes swept by both between the steps.
+        // Axes that cross meet inside the boxes swept by both between the steps; built
+        // at the step's first swap of sides (most steps have none).
         boxes.clear();
-        for k in 0..struts.len() as u32 {
-            let (a, b) = (struts.segment(k, previous), struts.segment(k, x));
-            boxes.push(Aabb::around(&[a.p, a.q, b.p, b.q], 0.0));
-        }
         let mut check = |pair: (u32, u32), was: i8, side: i8| {
-            if was * side >= 0 || !boxes[pair.0 as usize].overlaps(&boxes[pair.1 as usize]) {
+            if was * side >= 0 {
+                return;
+            }
+            if boxes.is_empty() {
+                boxes.extend((0..struts.len() as u32).map(|k| {
+                    let (a, b) = (struts.segment(k, previous), struts.segment(k, x));
+                    Aabb::around(&[a.p, a.q, b.p, b.q], 0.0)
+                }));
+            }
+            if !boxes[pair.0 as usize].overlaps(&boxes[pair.1 as usize]) {
                 return;
             }
             let after = (struts.segment(pair.0, x), struts.segment(pair.1, x));
