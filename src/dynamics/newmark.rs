@@ -4,9 +4,9 @@ use crate::solve::{
 };
 use crate::tsm::{
     assemble_tangents, block_product, damping_moduli, member_damping_all, scaled_blocks, tangent_sparsity, taut_members, Assembly,
-    DampingModulus, EndSlots, MemberState, ObjectiveDamping,
+    DampingModulus, EndSlots, MemberDamping, MemberState, ObjectiveDamping,
 };
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Vector3};
 
 /// The energy ledger of one converged step [J].
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -331,26 +331,23 @@ impl<'a> Newmark<'a> {
     }
 
     /// The stiffness-proportional (β) damping force of the last converged step on all 3n
-    /// node directions into `out`, with the member states its equation used: on the free
-    /// directions it is the β part of the damping force the step balanced, on the supported
-    /// ones what the members' damping forces put into the supports. The αM part acts on
-    /// the free directions only (a support does not move relative to the base). Summed over
-    /// `members` only (model order): a direction gets its whole force where all its node's
-    /// members are among them.
-    pub fn member_damping_force(&self, members: &[usize], out: &mut [f64]) {
+    /// node directions into `out`, as its equation had it (member states, moduli or βK
+    /// blocks): on the free directions it is the β part of the damping force the step
+    /// balanced, on the supported ones what the members' damping forces put into the
+    /// supports. The αM part acts on the free directions only (a support does not move
+    /// relative to the base). Summed over `members` only (model order): a direction gets its
+    /// whole force where all its node's members are among them. `velocities`: the step's
+    /// velocities `v` on the nodes (zero at fixed directions).
+    pub fn member_damping_force(&self, members: &[usize], velocities: &[Vector3<f64>], out: &mut [f64]) {
         out.fill(0.0);
-        let objective = (self.tangent == DampingTangent::Objective).then_some(&self.moduli[..]);
-        let asm = &self.asm;
-        member_damping_all(
-            asm.model,
-            members,
-            self.damping_states(),
-            objective,
-            asm.dofs,
-            &self.v,
-            self.rayleigh.beta,
-            out,
-        );
+        let damping = match self.tangent {
+            DampingTangent::Objective => MemberDamping::Objective {
+                moduli: &self.moduli,
+                beta: self.rayleigh.beta,
+            },
+            _ => MemberDamping::Blocks(&self.damp_blocks),
+        };
+        member_damping_all(self.asm.model, members, &self.asm.states, damping, velocities, out);
     }
 
     /// |KE + SE + D − W − E0|: zero for exact integration of the ledger.

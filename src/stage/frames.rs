@@ -158,7 +158,7 @@ impl FrameBuilder {
                 self.velocities[n][a] = vi;
                 balance[a] -= nm.mass[i] * (nm.a[i] + nm.rayleigh.alpha * vi);
             }
-            nm.member_damping_force(&self.constrained_members, &mut self.damping);
+            nm.member_damping_force(&self.constrained_members, &self.velocities, &mut self.damping);
             base = support_acceleration;
         }
         let mut reaction_sum = Vector3::zeros();
@@ -208,6 +208,21 @@ impl FrameBuilder {
 /// "member `side0_1` force", "kinetic energy"): a state with one is never committed or
 /// recorded (f64::max and comparisons let NaN through silently).
 pub fn non_finite(asm: &Assembly, velocities: Option<&[f64]>, energy: &Energy) -> Option<String> {
+    // Every step's check: a sum is finite where every term is (NaN and ±∞ carry through a
+    // sum; finite terms that overflow it only send it on to the search, which finds none).
+    let Energy {
+        kinetic,
+        strain,
+        damping,
+        external,
+    } = *energy;
+    let sum = asm.x.iter().map(|x| x.sum()).sum::<f64>()
+        + velocities.map_or(0.0, |v| v.iter().sum())
+        + asm.states.iter().map(|s| s.force).sum::<f64>()
+        + (kinetic + strain + damping + external);
+    if sum.is_finite() {
+        return None;
+    }
     let model = asm.model;
     if let Some((n, a)) = (0..model.node_count())
         .flat_map(|n| (0..3).map(move |a| (n, a)))
@@ -221,12 +236,6 @@ pub fn non_finite(asm: &Assembly, velocities: Option<&[f64]>, energy: &Energy) -
     if let Some(m) = asm.states.iter().position(|s| !s.force.is_finite()) {
         return Some(format!("member `{}` force", model.members[m].id));
     }
-    let Energy {
-        kinetic,
-        strain,
-        damping,
-        external,
-    } = *energy;
     [
         ("kinetic", kinetic),
         ("strain", strain),

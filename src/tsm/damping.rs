@@ -212,30 +212,39 @@ impl EndSlots {
     }
 }
 
+/// How the β term of Rayleigh damping acts on each member.
+#[derive(Clone, Copy, Debug)]
+pub enum MemberDamping<'a> {
+    /// [`ObjectiveDamping`]: β k l̇ along the member, k its modulus.
+    Objective { moduli: &'a [DampingModulus], beta: f64 },
+    /// [`block_product`]'s: the member's block of β K (from [`scaled_blocks`]) times its
+    /// relative velocity.
+    Blocks(&'a [Matrix3<f64>]),
+}
+
 /// out (over all 3n node directions, supported ones included) += the stiffness-proportional
-/// damping force of the `members` listed: [`ObjectiveDamping`]'s with `objective` moduli,
-/// else [`block_product`]'s, with the same member forces. Each member's force is a pair
-/// (+f, −f) on its ends, so what reaches a supported direction is its share of the
-/// support's reaction.
-#[allow(clippy::too_many_arguments)] // the member list, states and velocities of one product
+/// damping force of the `members` listed at node `velocities` (zero at fixed directions),
+/// the same member forces the step's equation had. Each member's force is a pair (+f, −f)
+/// on its ends, so what reaches a supported direction is its share of the support's
+/// reaction.
 pub fn member_damping_all(
     model: &Model,
     members: &[usize],
     states: &[MemberState],
-    objective: Option<&[DampingModulus]>,
-    dofs: &DofMap,
-    v: &[f64],
-    factor: f64,
+    damping: MemberDamping,
+    velocities: &[Vector3<f64>],
     out: &mut [f64],
 ) {
     for &e in members {
-        let (mem, s) = (&model.members[e], &states[e]);
-        let w = relative(dofs, v, mem.nodes);
-        let f = match objective {
-            Some(moduli) => s.dir * (factor * moduli[e].stiffness * s.dir.dot(&w)),
-            None => member_block(s) * w * factor,
+        let [a, b] = model.members[e].nodes;
+        let w = velocities[b] - velocities[a];
+        let f = match damping {
+            MemberDamping::Objective { moduli, beta } => {
+                let s = &states[e];
+                s.dir * (beta * moduli[e].stiffness * s.dir.dot(&w))
+            }
+            MemberDamping::Blocks(blocks) => blocks[e] * w,
         };
-        let [a, b] = mem.nodes;
         for ax in 0..3 {
             out[3 * a + ax] -= f[ax];
             out[3 * b + ax] += f[ax];
