@@ -69,7 +69,8 @@ impl Recorder for CaseBar {
         Ok(())
     }
     fn frame(&mut self, frame: &Frame) -> RecordResult {
-        if frame.step % 50 == 0 {
+        // A hidden bar (--quiet, CI, no terminal) draws nothing: no message to format.
+        if frame.step % 50 == 0 && !self.bar.is_hidden() {
             self.bar.set_message(format!("{} t = {:.2}", self.stage, frame.time));
             self.bar.tick();
         }
