@@ -30,11 +30,22 @@ fn tsim(args: &[&str]) -> Output {
     spawn(&mut cmd).wait_with_output().expect("tsim runs")
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tsim-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh directory under the system's temp dir for one test, removed when dropped.
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("tsim-cli-{name}-")).tempdir().unwrap()
+}
+
+/// A file in a scratch directory, which is removed when this is dropped.
+struct ScratchFile {
+    _dir: tempfile::TempDir,
+    path: PathBuf,
+}
+
+impl std::ops::Deref for ScratchFile {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.path
+    }
 }
 
 const SWEEP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/small_sweep.yaml");
@@ -67,7 +78,8 @@ fn sweep_runs_in_stable_order_and_resumes() {
         ]
     );
 
-    let out = scratch("resume");
+    let out_dir = scratch("resume");
+    let out = out_dir.path();
     let run = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--jobs", "2"]);
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     let csv = std::fs::read_to_string(out.join("small/summary.csv")).unwrap();
@@ -76,9 +88,9 @@ fn sweep_runs_in_stable_order_and_resumes() {
     for id in &ids {
         assert!(out.join("small").join(id).join("case.yaml").exists());
     }
-    assert!(outcomes(&out).iter().all(|o| o["status"] == "complete"));
+    assert!(outcomes(out).iter().all(|o| o["status"] == "complete"));
 
-    assert!(outcomes(&out).iter().all(|o| o["run"] == "computed"));
+    assert!(outcomes(out).iter().all(|o| o["run"] == "computed"));
 
     // A resume reuses the complete cases: their status stays `complete` (a pandas filter
     // on it must find them), and the `run` column says they were reused.
@@ -91,9 +103,9 @@ fn sweep_runs_in_stable_order_and_resumes() {
     let err = String::from_utf8_lossy(&quiet.stderr);
     assert!(err.contains("4 complete cases reused") && !err.contains("skipped"), "{err}");
     assert!(
-        outcomes(&out).iter().all(|o| o["status"] == "complete" && o["run"] == "reused"),
+        outcomes(out).iter().all(|o| o["status"] == "complete" && o["run"] == "reused"),
         "{:?}",
-        outcomes(&out)
+        outcomes(out)
     );
     let csv = std::fs::read_to_string(out.join("small/summary.csv")).unwrap();
     let column = |name: &str| -> Vec<String> {
@@ -108,7 +120,7 @@ fn sweep_runs_in_stable_order_and_resumes() {
     assert_eq!(column("run"), ["reused"; 4], "{csv}");
     let forced = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--force"]);
     assert!(forced.status.success());
-    assert!(outcomes(&out).iter().all(|o| o["status"] == "complete" && o["run"] == "computed"));
+    assert!(outcomes(out).iter().all(|o| o["status"] == "complete" && o["run"] == "computed"));
 }
 
 /// `tsim --version`: the crate version and the git revision it was built from.
@@ -151,21 +163,23 @@ fn outcomes_without_times(dir: &Path) -> Vec<serde_json::Value> {
 
 #[test]
 fn parallel_equals_serial() {
-    let (serial, parallel) = (scratch("serial"), scratch("parallel"));
+    let (serial_dir, parallel_dir) = (scratch("serial"), scratch("parallel"));
+    let (serial, parallel) = (serial_dir.path(), parallel_dir.path());
     assert!(tsim(&["run", SWEEP, "--out", serial.to_str().unwrap(), "--jobs", "1"])
         .status
         .success());
     assert!(tsim(&["run", SWEEP, "--out", parallel.to_str().unwrap(), "--jobs", "2"])
         .status
         .success());
-    assert_eq!(outcomes_without_times(&serial), outcomes_without_times(&parallel));
+    assert_eq!(outcomes_without_times(serial), outcomes_without_times(parallel));
 }
 
 /// Two shards at once in one directory (as a job array runs them), merged by `collect`:
 /// the unsharded run's summary; a case killed mid-way is reported and fails the merge.
 #[test]
 fn shards_run_side_by_side_and_merge_to_the_unsharded_summary() {
-    let (sharded, plain) = (scratch("sharded"), scratch("plain"));
+    let (sharded_dir, plain_dir) = (scratch("sharded"), scratch("plain"));
+    let (sharded, plain) = (sharded_dir.path(), plain_dir.path());
     let shard = |i: &str| {
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_tsim"));
         cmd.args(["run", SWEEP, "--out", sharded.to_str().unwrap(), "--quiet", "--shard", i])
@@ -183,7 +197,7 @@ fn shards_run_side_by_side_and_merge_to_the_unsharded_summary() {
     let merged = tsim(&["collect", dir.to_str().unwrap()]);
     assert_eq!(merged.status.code(), Some(0), "{}", String::from_utf8_lossy(&merged.stderr));
     assert!(tsim(&["run", SWEEP, "--out", plain.to_str().unwrap(), "--quiet"]).status.success());
-    assert_eq!(outcomes_without_times(&sharded), outcomes_without_times(&plain));
+    assert_eq!(outcomes_without_times(sharded), outcomes_without_times(plain));
 
     // A task killed mid-case leaves no outcome.json: interrupted, whatever its manifest says.
     std::fs::remove_file(dir.join("cable-nylon_zeta-0.1/outcome.json")).unwrap();
@@ -194,27 +208,27 @@ fn shards_run_side_by_side_and_merge_to_the_unsharded_summary() {
         err.contains("not complete: cable-nylon_zeta-0.1: started but no outcome.json"),
         "{err}"
     );
-    assert!(outcomes(&sharded).iter().any(|o| o["status"] == "interrupted"));
+    assert!(outcomes(sharded).iter().any(|o| o["status"] == "interrupted"));
 
     let bad = tsim(&["run", SWEEP, "--shard", "2/2"]);
     assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("numbered from 0 to N-1"));
 }
 
-fn bad_config(text: &str) -> (Output, PathBuf) {
+fn bad_config(text: &str) -> (Output, ScratchFile) {
     // By content: tests run in parallel, and two bad texts may have the same length.
     let mut hasher = std::hash::DefaultHasher::new();
     text.hash(&mut hasher);
     let dir = scratch(&format!("bad{:x}", hasher.finish()));
-    let path = dir.join("bad.yaml");
+    let path = dir.path().join("bad.yaml");
     std::fs::write(&path, text).unwrap();
     let start = Instant::now();
-    let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.join("runs").to_str().unwrap()]);
+    let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.path().join("runs").to_str().unwrap()]);
     // Validation happens before any work: a second is generous for a parse.
     assert!(start.elapsed() < Duration::from_secs(1));
     assert_eq!(out.status.code(), Some(2));
-    assert!(!dir.join("runs").exists(), "a bad config must write nothing");
-    (out, path)
+    assert!(!dir.path().join("runs").exists(), "a bad config must write nothing");
+    (out, ScratchFile { _dir: dir, path })
 }
 
 /// `path:line` of the first line of `text` containing `needle`.
@@ -414,12 +428,13 @@ fn a_failing_case_does_not_stop_the_others() {
         "        - { label: \"0.1\", set: { eigen.rayleigh.ratios: [0.1, 0.1] } }",
         "        - { label: \"0.1\", set: { eigen.rayleigh.ratios: [0.1, 0.1], newton.max_iterations: 1, deployment.max_cuts: 0, folding.max_cuts: 0 } }",
     );
-    let dir = scratch("diverge");
+    let scratch_dir = scratch("diverge");
+    let dir = scratch_dir.path();
     let path = dir.join("sweep.yaml");
     std::fs::write(&path, text).unwrap();
     let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1));
-    let o = outcomes(&dir);
+    let o = outcomes(dir);
     let failed: Vec<_> = o.iter().filter(|c| c["status"] == "failed").collect();
     assert_eq!(failed.len(), 2, "{o:?}");
     for f in failed {
@@ -438,7 +453,8 @@ fn a_failing_case_does_not_stop_the_others() {
 fn figures_are_optional() {
     let good = std::fs::read_to_string(SWEEP).unwrap();
     let text = good.split("sweep:").next().unwrap().to_string() + "outputs: { figures: true, hdf5: false, mcap: false }\n";
-    let dir = scratch("figures");
+    let scratch_dir = scratch("figures");
+    let dir = scratch_dir.path();
     let path = dir.join("one.yaml");
     std::fs::write(&path, text).unwrap();
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_tsim"));
@@ -521,12 +537,13 @@ fn an_unstable_structure_fails_at_substitution() {
         .next()
         .unwrap()
         .replace("cable: rubber }", "cable: rubber, prestress_scale: 1.0e-300 }");
-    let dir = scratch("unstable");
+    let scratch_dir = scratch("unstable");
+    let dir = scratch_dir.path();
     let path = dir.join("unstable.yaml");
     std::fs::write(&path, &text).unwrap();
     let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1));
-    let o = outcomes(&dir);
+    let o = outcomes(dir);
     assert_eq!(o[0]["status"], "failed");
     let reason = o[0]["reason"].as_str().unwrap();
     assert!(
@@ -541,7 +558,8 @@ fn an_unstable_structure_fails_at_substitution() {
 /// refused with the holder named, writing nothing.
 #[test]
 fn resume_verifies_outputs_and_a_used_directory_is_locked() {
-    let out = scratch("verify");
+    let out_dir = scratch("verify");
+    let out = out_dir.path();
     let run = |extra: &[&str]| tsim(&[&["run", SWEEP, "--out", out.to_str().unwrap()], extra].concat());
     assert!(run(&[]).status.success());
     let dir = out.join("small");
@@ -550,7 +568,7 @@ fn resume_verifies_outputs_and_a_used_directory_is_locked() {
     std::fs::OpenOptions::new().write(true).open(&h5).unwrap().set_len(len / 2).unwrap();
     std::fs::remove_file(dir.join("cable-nylon_zeta-0.1/replay.mcap")).unwrap();
     assert!(run(&[]).status.success());
-    let status: Vec<(String, String, String)> = outcomes(&out)
+    let status: Vec<(String, String, String)> = outcomes(out)
         .iter()
         .map(|o| {
             let text = |k: &str| o[k].as_str().unwrap().to_string();
@@ -587,7 +605,8 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
         .replace("sweep:", "outputs: { every: 1000 }\nsweep:");
     assert_ne!(text, good);
     for signal in [libc::SIGINT, libc::SIGTERM] {
-        let dir = scratch(&format!("signal{signal}"));
+        let scratch_dir = scratch(&format!("signal{signal}"));
+        let dir = scratch_dir.path();
         let path = dir.join("long.yaml");
         std::fs::write(&path, &text).unwrap();
         let args = [
@@ -617,7 +636,7 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
             err.contains("interrupted: ") && err.contains("Rerunning the same command reuses"),
             "{err}"
         );
-        let o = outcomes(&dir);
+        let o = outcomes(dir);
         for case in o.iter().filter(|c| c["status"] == "complete") {
             assert!(err.contains(case["id"].as_str().unwrap()), "{err}");
         }
@@ -633,7 +652,7 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
         assert!(o.iter().all(|c| c["status"] == "complete" || c["status"] == "interrupted"), "{o:?}");
         let again = tsim(&args);
         assert!(again.status.success(), "{}", String::from_utf8_lossy(&again.stderr));
-        let o = outcomes(&dir);
+        let o = outcomes(dir);
         assert!(o.iter().all(|c| c["status"] == "complete"), "{o:?}");
     }
 }
@@ -727,7 +746,8 @@ fn limits_stay_out_of_case_yaml() {
 /// written, that case's row kept), and 2 for a directory that is no run.
 #[test]
 fn collect_lists_missing_cases_in_its_exit_code() {
-    let out = scratch("collect");
+    let out_dir = scratch("collect");
+    let out = out_dir.path();
     let run = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--quiet"]);
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     let dir = out.join("small");
@@ -883,7 +903,8 @@ model:
 substitution: { strut: aluminium, cable: rubber }
 newton: { max_iterations: 1 }
 ";
-    let dir = scratch("newton-eq");
+    let scratch_dir = scratch("newton-eq");
+    let dir = scratch_dir.path();
     let path = dir.join("eq.yaml");
     std::fs::write(&path, text).unwrap();
     let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
@@ -903,7 +924,8 @@ newton: { max_iterations: 1 }
     // A tower's form-finding at one iteration: the criterion that failed, its tolerance.
     let good = std::fs::read_to_string(SWEEP).unwrap();
     let text = good.split("sweep:").next().unwrap().to_string() + "newton: { max_iterations: 1 }\n";
-    let dir = scratch("newton-ff");
+    let scratch_dir = scratch("newton-ff");
+    let dir = scratch_dir.path();
     let path = dir.join("ff.yaml");
     std::fs::write(&path, text).unwrap();
     let out = tsim(&["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
@@ -942,7 +964,8 @@ fn a_tower_of_two_struts_is_refused_plainly() {
 /// then reuses the complete ones and computes the rest.
 #[test]
 fn only_runs_some_cases_and_check_shows_where_each_stands() {
-    let out = scratch("only");
+    let out_dir = scratch("only");
+    let out = out_dir.path();
     let o = out.to_str().unwrap();
     let states = |config: &str| -> Vec<(String, String)> {
         let check = tsim(&["check", config, "--out", o]);
@@ -961,7 +984,7 @@ fn only_runs_some_cases_and_check_shows_where_each_stands() {
 
     let run = tsim(&["run", SWEEP, "--out", o, "--only", "cable-nylon_*", "--quiet"]);
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    let by_id: Vec<(String, String, String)> = outcomes(&out)
+    let by_id: Vec<(String, String, String)> = outcomes(out)
         .iter()
         .map(|c| {
             (
@@ -1000,7 +1023,7 @@ fn only_runs_some_cases_and_check_shows_where_each_stands() {
     let all = tsim(&["run", SWEEP, "--out", o, "--quiet"]);
     assert!(all.status.success());
     assert!(String::from_utf8_lossy(&all.stderr).contains("2 complete cases reused"));
-    assert!(outcomes(&out).iter().all(|c| c["status"] == "complete"));
+    assert!(outcomes(out).iter().all(|c| c["status"] == "complete"));
 }
 
 /// `tsim completions SHELL` prints a completion script that knows the subcommands and

@@ -546,12 +546,9 @@ fn energy_balance_closes_with_time_varying_and_ground_loads() {
 // (f) CSV tables and the errors of loads, from files
 // ---------------------------------------------------------------------------------------
 
-/// A fresh directory under the system's temp dir for one test.
-fn scratch(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("tsim-loads-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh directory under the system's temp dir for one test, removed when dropped.
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("tsim-loads-{name}-")).tempdir().unwrap()
 }
 
 /// The star of (d): 13 lines, from `model:` to `substitution:`.
@@ -590,7 +587,8 @@ fn load_errors(path: &std::path::Path) -> String {
 /// with the same points written inline, bit for bit.
 #[test]
 fn csv_table_is_read_into_the_resolved_config() {
-    let dir = scratch("csv-ok");
+    let scratch_dir = scratch("csv-ok");
+    let dir = scratch_dir.path();
     let fixture = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/ground_pulse.csv");
     std::fs::copy(fixture, dir.join("pulse.csv")).unwrap();
     let path = dir.join("case.yaml");
@@ -621,14 +619,14 @@ fn csv_table_is_read_into_the_resolved_config() {
     let ys: Vec<f64> = a.stage(Stage::FreeVibration).map(|f| f.2[MID].y).collect();
     assert!(ys.iter().any(|y| y.abs() > 1e-6), "the ground motion moved the star");
     assert_eq!(ys, b.stage(Stage::FreeVibration).map(|f| f.2[MID].y).collect::<Vec<_>>());
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Every CSV problem is reported at its file and line, with what to do; a missing file
 /// names the resolved path at the config's `file:` line.
 #[test]
 fn csv_table_errors_name_file_and_line() {
-    let dir = scratch("csv-errors");
+    let scratch_dir = scratch("csv-errors");
+    let dir = scratch_dir.path();
     let config = |name: &str, csv: Option<&str>| {
         if let Some(csv) = csv {
             std::fs::write(dir.join(format!("{name}.csv")), csv).unwrap();
@@ -662,7 +660,6 @@ fn csv_table_errors_name_file_and_line() {
     let e = load_errors(&path);
     eprintln!("{e}");
     assert!(e.contains(&csv) && e.contains("at least 2"), "{e}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Bad loads, ground motion and initial conditions are value errors at their lines: an

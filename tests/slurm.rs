@@ -50,11 +50,9 @@ fn cluster_up() -> bool {
     up
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tsim-slurm-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh directory under the system's temp dir for one test, removed when dropped.
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("tsim-slurm-{name}-")).tempdir().unwrap()
 }
 
 /// `tsim submit`'s two job ids (array, merge).
@@ -134,7 +132,8 @@ fn a_sharded_sweep_on_slurm_merges_to_the_unsharded_summary() {
     if !cluster_up() {
         return;
     }
-    let out = scratch("sharded");
+    let out_dir = scratch("sharded");
+    let out = out_dir.path();
     let root = out.to_str().unwrap();
     let (array, merge) = submit(&[SWEEP, "--out", root, "--shards", "3", "--throttle", "2"]);
     wait(&[&array, &merge]);
@@ -163,7 +162,6 @@ fn a_sharded_sweep_on_slurm_merges_to_the_unsharded_summary() {
     let unsharded = tsim(&["run", SWEEP, "--out", plain.to_str().unwrap(), "--quiet"]);
     assert!(unsharded.status.success(), "{}", text(&unsharded.stderr));
     assert_eq!(summary_without_times(&run), summary_without_times(&plain.join("small")));
-    let _ = std::fs::remove_dir_all(&out);
 }
 
 /// small_sweep.yaml with a long deployment in small steps (~4 s a case here), so that a
@@ -190,8 +188,9 @@ fn a_cancelled_task_is_reported_and_a_resubmit_completes_it() {
     if !cluster_up() {
         return;
     }
-    let out = scratch("cancel");
-    let config = slow_sweep(&out);
+    let out_dir = scratch("cancel");
+    let out = out_dir.path();
+    let config = slow_sweep(out);
     let args = [config.to_str().unwrap(), "--out", out.to_str().unwrap()];
     // One task at a time: shard 0, then shard 1, which is cancelled once a case of it runs.
     let (array, merge) = submit(&[&args[..], &["--shards", "2", "--throttle", "1"]].concat());
@@ -252,5 +251,4 @@ fn a_cancelled_task_is_reported_and_a_resubmit_completes_it() {
         (4, 4),
         "every case in exactly one manifest: {listed:?}"
     );
-    let _ = std::fs::remove_dir_all(&out);
 }

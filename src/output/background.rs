@@ -451,7 +451,7 @@ mod tests {
     #[test]
     fn hdf5_through_the_worker_matches_and_a_drop_is_not_complete() {
         let model = small_tower();
-        let path = temp_path("background.h5");
+        let (_dir, path) = temp_path("background.h5");
         let mut bg = Background::new(Hdf5Recorder::create(&path, "c", "").unwrap(), "h5");
         drive(&mut bg, &model, 700, 1).unwrap();
         bg.finish(&Outcome::Complete).unwrap();

@@ -1044,10 +1044,11 @@ pub(super) mod tests {
     use crate::model::Model;
     use crate::record::{Constraints, EigenRecord, Energy, Nearest};
 
-    pub(in crate::output) fn temp_path(name: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("tsim-record-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        dir.join(name)
+    /// A path `name` in a fresh directory, which is removed when the guard is dropped.
+    pub(in crate::output) fn temp_path(name: &str) -> (tempfile::TempDir, std::path::PathBuf) {
+        let dir = tempfile::Builder::new().prefix("tsim-record-").tempdir().unwrap();
+        let path = dir.path().join(name);
+        (dir, path)
     }
 
     /// Drives `rec` through every stage of a synthetic case: form-finding, eigen, then steps
@@ -1167,7 +1168,7 @@ pub(super) mod tests {
             ..TowerSpec::paper()
         }
         .build();
-        let path = temp_path("layout.h5");
+        let (_dir, path) = temp_path("layout.h5");
         let mut rec = Hdf5Recorder::create(&path, "case-7", "a: 1\n").unwrap();
         // Stride 3 over steps 0..=10: the last step is not a multiple of 3.
         drive(&mut rec, &model, 10, 3).unwrap();
@@ -1300,7 +1301,7 @@ pub(super) mod tests {
             ..TowerSpec::paper()
         }
         .build();
-        let path = temp_path("chunks.h5");
+        let (_dir, path) = temp_path("chunks.h5");
         let mut rec = Hdf5Recorder::create(&path, "c", "").unwrap();
         drive(&mut rec, &model, 600, 1).unwrap();
         rec.finish(&Outcome::Failed("é".repeat(400))).unwrap();
@@ -1327,7 +1328,7 @@ pub(super) mod tests {
         }
         .build();
         model.nodes.iter_mut().for_each(|n| n.support = [false; 3]);
-        let path = temp_path("free.h5");
+        let (_dir, path) = temp_path("free.h5");
         let mut rec = Hdf5Recorder::create(&path, "c", "").unwrap();
         drive(&mut rec, &model, 5, 1).unwrap();
         rec.finish(&Outcome::Complete).unwrap();
@@ -1346,7 +1347,7 @@ pub(super) mod tests {
             ..TowerSpec::paper()
         }
         .build();
-        let path = temp_path("dropped.h5");
+        let (_dir, path) = temp_path("dropped.h5");
         let mut rec = Hdf5Recorder::create(&path, "c", "").unwrap();
         rec.model(&ModelRecord {
             model: &model,

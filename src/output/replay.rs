@@ -951,7 +951,7 @@ mod tests {
             ..TowerSpec::paper()
         }
         .build();
-        let path = temp_path("replay.mcap");
+        let (_dir, path) = temp_path("replay.mcap");
         let mut rec = McapRecorder::create(&path, "case-7", 0.0).unwrap();
         drive(&mut rec, &model, 10, 3).unwrap();
         rec.finish(&Outcome::Complete).unwrap();
@@ -998,7 +998,7 @@ mod tests {
             ..TowerSpec::paper()
         }
         .build();
-        let path = temp_path("thinned.mcap");
+        let (_dir, path) = temp_path("thinned.mcap");
         // 20 Hz: at least 50 ms between logged frames; `drive` gives steps 0, 3, 6, 9, 10 at
         // 10 ms a step, so steps 0, 6 and 10 (the last, held back and logged at the end).
         let mut rec = McapRecorder::create(&path, "case-7", 20.0).unwrap();
@@ -1021,7 +1021,8 @@ mod tests {
     }
 
     fn scene_recorder(model: &Model, name: &str) -> McapRecorder {
-        let mut rec = McapRecorder::create(&temp_path(name), "c", 0.0).unwrap();
+        let (_dir, path) = temp_path(name);
+        let mut rec = McapRecorder::create(&path, "c", 0.0).unwrap();
         let members = model.members.len();
         rec.model(&ModelRecord {
             model,

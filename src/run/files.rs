@@ -224,69 +224,71 @@ impl Drop for RunLock {
 mod tests {
     use super::*;
 
-    fn scratch(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("tsim-files-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
+    /// A fresh directory for one test, removed when dropped.
+    fn scratch(name: &str) -> tempfile::TempDir {
+        tempfile::Builder::new().prefix(&format!("tsim-files-{name}-")).tempdir().unwrap()
     }
 
     #[test]
     fn a_second_lock_is_refused_and_a_stale_one_taken_over() {
-        let dir = scratch("lock");
-        let first = RunLock::acquire(&dir).unwrap();
-        let err = RunLock::acquire(&dir).err().expect("a second lock while the first is held");
+        let scratch_dir = scratch("lock");
+        let dir = scratch_dir.path();
+        let first = RunLock::acquire(dir).unwrap();
+        let err = RunLock::acquire(dir).err().expect("a second lock while the first is held");
         assert!(err.to_string().contains("in use"), "{err}");
-        assert!(RunLock::shard(&dir, 0, 2).is_err(), "no shard while the whole run is held");
+        assert!(RunLock::shard(dir, 0, 2).is_err(), "no shard while the whole run is held");
         drop(first);
         assert!(!dir.join(".lock").exists());
         // A lock of a process that is gone (pid 0 is never a user process) is stale.
         std::fs::write(dir.join(".lock"), format!("{} 0", host())).unwrap();
-        let _taken = RunLock::acquire(&dir).unwrap();
+        let _taken = RunLock::acquire(dir).unwrap();
     }
 
     #[test]
     fn shards_of_one_partition_share_a_directory() {
-        let dir = scratch("shards");
-        let first = RunLock::shard(&dir, 0, 3).unwrap();
-        let second = RunLock::shard(&dir, 1, 3).unwrap();
-        assert!(RunLock::shard(&dir, 1, 3).is_err(), "the same shard twice");
-        assert!(RunLock::shard(&dir, 0, 2).is_err(), "a shard of another partition");
-        let err = RunLock::acquire(&dir).err().expect("no whole run while shards run");
+        let scratch_dir = scratch("shards");
+        let dir = scratch_dir.path();
+        let first = RunLock::shard(dir, 0, 3).unwrap();
+        let second = RunLock::shard(dir, 1, 3).unwrap();
+        assert!(RunLock::shard(dir, 1, 3).is_err(), "the same shard twice");
+        assert!(RunLock::shard(dir, 0, 2).is_err(), "a shard of another partition");
+        let err = RunLock::acquire(dir).err().expect("no whole run while shards run");
         assert!(err.to_string().contains("in use"), "{err}");
         assert!(!dir.join(WHOLE).exists(), "the refused whole run left no lock");
         drop((first, second));
-        let _whole = RunLock::acquire(&dir).unwrap();
+        let _whole = RunLock::acquire(dir).unwrap();
     }
 
     #[test]
     fn changed_outputs_are_found() {
-        let dir = scratch("verify");
+        let scratch_dir = scratch("verify");
+        let dir = scratch_dir.path();
         let mut h5 = HDF5_SIGNATURE.to_vec();
         h5.extend([0u8; 100]);
         let mut mcap = vec![1u8; 50];
         mcap.extend(MCAP_MAGIC);
         std::fs::write(dir.join("result.h5"), &h5).unwrap();
         std::fs::write(dir.join("replay.mcap"), &mcap).unwrap();
-        let files = output_files(&dir);
+        let files = output_files(dir);
         assert_eq!(files.len(), 2);
-        assert_eq!(changed(&dir, &files), None);
+        assert_eq!(changed(dir, &files), None);
         std::fs::write(dir.join("result.h5"), &h5[..50]).unwrap();
-        assert!(changed(&dir, &files).unwrap().contains("result.h5 is 50 bytes"));
+        assert!(changed(dir, &files).unwrap().contains("result.h5 is 50 bytes"));
         std::fs::write(dir.join("result.h5"), &h5).unwrap();
         std::fs::write(dir.join("replay.mcap"), vec![0u8; mcap.len()]).unwrap();
-        assert!(changed(&dir, &files).unwrap().contains("signature"));
+        assert!(changed(dir, &files).unwrap().contains("signature"));
         std::fs::remove_file(dir.join("replay.mcap")).unwrap();
-        assert!(changed(&dir, &files).unwrap().starts_with("replay.mcap"));
+        assert!(changed(dir, &files).unwrap().starts_with("replay.mcap"));
     }
 
     #[test]
     fn atomic_write_replaces_whole() {
-        let dir = scratch("atomic");
+        let scratch_dir = scratch("atomic");
+        let dir = scratch_dir.path();
         let path = dir.join("outcome.json");
         write_atomic(&path, b"first").unwrap();
         write_atomic(&path, b"second").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"second");
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "no temporary file left");
+        assert_eq!(std::fs::read_dir(dir).unwrap().count(), 1, "no temporary file left");
     }
 }
