@@ -108,6 +108,10 @@ const SINGULAR_PIVOT: f64 = 1e-13;
 /// Cholesky fails (an indefinite static state). With row pivoting only, U's j-th pivot
 /// belongs to column j, i.e. to free DOF j, which is what a singularity report names.
 pub struct DenseSolver {
+    n: usize,
+    /// The assembled matrix in the leading n × n block of an (n + 1) × (n + 1) one: row and
+    /// column n take the terms of fixed directions, so that an element adds its block
+    /// without asking entry by entry which of its directions are free ([`Self::add_pair`]).
     k: Mat<f64>,
     /// Factor storage; `k` is kept for the LU fallback.
     work: Mat<f64>,
@@ -129,7 +133,8 @@ impl DenseSolver {
             lu_solve::solve_in_place_scratch::<usize, f64>(n, 1, Par::Seq),
         ]);
         DenseSolver {
-            k: Mat::zeros(n, n),
+            n,
+            k: Mat::zeros(n + 1, n + 1),
             work: Mat::zeros(n, n),
             inv_diag: if n <= SMALL_SOLVE { vec![0.0; n] } else { Vec::new() },
             perm: vec![0; n],
@@ -145,27 +150,23 @@ impl TangentSink for DenseSolver {
         self.k[(row, col)] += value;
     }
 
-    /// ±k straight into the matrix's columns (each entry receives the one addition it
-    /// would from the expanded block, so the sum is the same to the last bit).
+    /// ±k straight into the matrix's columns, fixed directions into the spare row and
+    /// column (each free entry receives the one addition it would from the expanded block,
+    /// so the sum is the same to the last bit).
     fn add_pair(&mut self, _e: usize, free: &[Option<usize>; 6], k: &[[f64; 3]; 3]) {
-        let (n, stride) = (self.k.nrows(), self.k.col_stride() as usize);
+        let (n, stride) = (self.n, self.k.col_stride() as usize);
+        let at = free.map(|f| f.unwrap_or(n));
         let storage = self.k.as_mut();
-        for (end, cols) in free.chunks_exact(3).enumerate() {
-            for (c, col) in cols.iter().enumerate() {
-                let Some(col) = *col else { continue };
-                // SAFETY: `col` < n is a column of the n × n matrix, whose column `col`
-                // is the n entries from col · stride of its storage.
-                let column = unsafe { std::slice::from_raw_parts_mut(storage.as_ptr_mut().add(col * stride), n) };
-                for (other, rows) in free.chunks_exact(3).enumerate() {
-                    for (r, row) in rows.iter().enumerate() {
-                        if let Some(row) = *row {
-                            if end == other {
-                                column[row] += k[r][c];
-                            } else {
-                                column[row] -= k[r][c];
-                            }
-                        }
-                    }
+        for (c, &col) in at.iter().enumerate() {
+            // SAFETY: `col` ≤ n is a column of the (n + 1) × (n + 1) matrix, whose column
+            // `col` is the n + 1 entries from col · stride of its storage.
+            let column = unsafe { std::slice::from_raw_parts_mut(storage.as_ptr_mut().add(col * stride), n + 1) };
+            for (r, &row) in at.iter().enumerate() {
+                let value = k[r % 3][c % 3];
+                if (r < 3) == (c < 3) {
+                    column[row] += value;
+                } else {
+                    column[row] -= value;
                 }
             }
         }
@@ -180,10 +181,11 @@ impl TangentSolver for DenseSolver {
     fn cholesky(&mut self) -> bool {
         // Column by column (contiguous slices: a memcpy each; faer's `copy_from` goes
         // entry by entry, a fifth of a 52 × 52 factorization's cost).
-        for j in 0..self.k.ncols() {
-            self.work.col_as_slice_mut(j).copy_from_slice(self.k.col_as_slice(j));
+        let n = self.n;
+        for j in 0..n {
+            self.work.col_as_slice_mut(j).copy_from_slice(&self.k.col_as_slice(j)[..n]);
         }
-        let llt = if self.k.nrows() <= SMALL_FACTOR {
+        let llt = if n <= SMALL_FACTOR {
             cholesky_in_place(&mut self.work).map_err(|_| ())
         } else {
             llt_factor::cholesky_in_place(
@@ -208,13 +210,13 @@ impl TangentSolver for DenseSolver {
     }
 
     fn factor(&mut self, symmetric: bool) -> Result<(), LinearError> {
-        let n = self.k.nrows();
+        let n = self.n;
         self.factored = Factored::None;
         if symmetric && self.cholesky() {
             return Ok(());
         }
         lu_factor::lu_in_place(
-            self.k.as_mut(),
+            self.k.as_mut().submatrix_mut(0, 0, n, n),
             &mut self.perm,
             &mut self.perm_inv,
             Par::Seq,
@@ -239,7 +241,7 @@ impl TangentSolver for DenseSolver {
     }
 
     fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
-        let n = self.k.nrows();
+        let n = self.n;
         let stack = MemStack::new(&mut self.mem);
         match self.factored {
             Factored::Cholesky if !self.inv_diag.is_empty() => cholesky_solve_in_place(&self.work, &self.inv_diag, rhs),
@@ -250,7 +252,8 @@ impl TangentSolver for DenseSolver {
             Factored::Lu => {
                 let perm = PermRef::new_checked(&self.perm, &self.perm_inv, n);
                 let x = faer::ColMut::from_slice_mut(rhs).as_mat_mut();
-                lu_solve::solve_in_place_with_conj(self.k.as_ref(), self.k.as_ref(), perm, Conj::No, x, Par::Seq, stack)
+                let lu = self.k.as_ref().submatrix(0, 0, n, n);
+                lu_solve::solve_in_place_with_conj(lu, lu, perm, Conj::No, x, Par::Seq, stack)
             }
             Factored::None | Factored::Ldlt => panic!("TangentSolver::solve before a successful factor()"),
         }
