@@ -40,6 +40,12 @@ impl DofMap {
         self.index[3 * node + axis]
     }
 
+    /// The free indices of a two-node element's six directions (x, y, z of `a`, then of `b`).
+    pub fn ends(&self, [a, b]: [usize; 2]) -> [Option<usize>; 6] {
+        let (p, q) = (&self.index[3 * a..3 * a + 3], &self.index[3 * b..3 * b + 3]);
+        [p[0], p[1], p[2], q[0], q[1], q[2]]
+    }
+
     /// (node, axis) of a free index.
     pub fn owner(&self, dof: usize) -> (usize, usize) {
         self.owner[dof]

@@ -113,8 +113,7 @@ pub fn assemble_tangents(model: &Model, dofs: &DofMap, terms: &[(&[MemberState],
 /// Adds member `e`'s 6×6 block [[k, −k], [−k, k]] (k the block on its relative position)
 /// on the free DOFs of its nodes.
 pub fn add_member_block(dofs: &DofMap, e: usize, [a, b]: [usize; 2], k: &Matrix3<f64>, sink: &mut (impl TangentSink + ?Sized)) {
-    let free = [0, 1, 2, 3, 4, 5].map(|i| dofs.free(if i < 3 { a } else { b }, i % 3));
-    sink.add_pair(e, &free, &std::array::from_fn(|r| std::array::from_fn(|c| k[(r, c)])));
+    sink.add_pair(e, &dofs.ends([a, b]), &std::array::from_fn(|r| std::array::from_fn(|c| k[(r, c)])));
 }
 
 /// K_T's shape for the sparse solver: every (row, column) of free DOFs it can fill (the
