@@ -491,9 +491,12 @@ pub struct OutputSpec {
     /// Frames per second of simulated time in `replay.mcap` for time-stepping stages
     /// [Hz]: a frame is logged when at least 1/rate has passed since the last one logged,
     /// and a stage's first and last frames always are; 0 logs every recorded step.
-    /// result.h5 keeps every recorded step either way. Default 1000: at 0.1× playback
-    /// Foxglove still gets 100 frames per second, and the paper's deployment at
-    /// dt = 0.5 ms writes half the frames (bench/outputs.md).
+    /// result.h5 keeps every recorded step either way. Default 250: smooth real-time
+    /// playback in Foxglove (which draws at the display's rate, ~60 Hz) and 60 frames per
+    /// second down to 0.25× speed; for slower study, raise it (1000: 0.1× at 100 frames
+    /// per second). Encoding and compressing the replay's frames was most of the output
+    /// writer's CPU: at 1000 it took 0.59 of the solver's CPU on the paper case, at 250
+    /// 0.38 (bench/outputs.md).
     #[serde(default = "default_replay_rate")]
     pub replay_rate: f64,
     /// Draw the case's figures after it completes, with the figures script
@@ -511,7 +514,7 @@ fn one_usize() -> usize {
     1
 }
 fn default_replay_rate() -> f64 {
-    1000.0
+    250.0
 }
 fn yes() -> bool {
     true

@@ -52,7 +52,7 @@ use std::path::Path;
 type Error = Box<dyn std::error::Error + Send + Sync>;
 
 /// zstd level of the MCAP chunks (see [`McapRecorder::create`]).
-const ZSTD_LEVEL: i32 = -1;
+const ZSTD_LEVEL: i32 = -3;
 /// Synthetic duration of one step of a static stage on the log timeline [s].
 pub const STATIC_STEP: f64 = 0.1;
 /// Line widths [px], independent of zoom so that any model size reads well.
@@ -433,11 +433,13 @@ impl McapRecorder {
     /// `1 / replay_rate` s of simulated time after the last logged one (every frame with
     /// `replay_rate` 0). Static stages log every frame.
     pub fn create(path: &Path, case_id: &str, replay_rate: f64) -> Result<Self, Error> {
-        // zstd level −1, zstd's first "fast" level: as small a file as level 1 on the paper
-        // case (20.7 MB either way) for 8 % less writer CPU; lz4 cost as much CPU for a file
-        // 46 % larger; levels −3 and −5 cut the writer's CPU by a further 6 % and 9 % for
-        // files 10 % and 13 % larger (bench/outputs.md). mcap takes the level as a u32 and hands it to zstd as
-        // an i32, so −1 goes through as its two's complement. Single-threaded: the recorder
+        // zstd level −3, a "fast" level: level −1 gave as small a file as level 1 on the
+        // paper case (20.7 MB either way, every frame) for 8 % less writer CPU, and −3 and
+        // −5 a further 6 % and 9 % less for files 10 % and 13 % larger; lz4 cost as much
+        // CPU as −1 for a file 46 % larger. With the replay thinned to 250 frames per
+        // simulated second the file is 3.2 MB, and −3's CPU is worth its 10 % (bench/outputs.md).
+        // mcap takes the level as a u32 and hands it to zstd as an i32, so −3 goes through
+        // as its two's complement. Single-threaded: the recorder
         // has a thread of its own (see `Background`), and zstd's own workers would compete
         // with the solver.
         let options = mcap::WriteOptions::new()
