@@ -183,9 +183,9 @@ pub fn block_product(blocks: &[Matrix3<f64>], ends: &mut EndSlots, v: &[f64], ou
 /// Each member's six end directions as indices into free-DOF vectors extended by one slot
 /// (index n, the free DOF count): a fixed direction points at it, where the velocity reads
 /// zero and what is added is dropped. A loop over members then gathers and scatters
-/// without asking per direction whether it is free (a per-node copy of the vectors cost
-/// the βK product a third of its time on the benchmark tower). Each free entry receives
-/// its terms in member order, as a loop over the free DOFs would add them.
+/// without asking per direction whether it is free, and without per-node copies of the
+/// vectors (8 % fewer instructions for the βK product on the benchmark tower, callgrind).
+/// Each free entry receives its terms in member order, as before, to the last bit.
 #[derive(Clone, Debug)]
 pub struct EndSlots {
     slots: Vec<[usize; 6]>,
@@ -197,12 +197,8 @@ pub struct EndSlots {
 impl EndSlots {
     pub fn new(model: &Model, dofs: &DofMap) -> Self {
         let spare = dofs.len();
-        let slot = |node: usize, ax: usize| dofs.free(node, ax).unwrap_or(spare);
         let slots = (model.members.iter())
-            .map(|m| {
-                let [a, b] = m.nodes;
-                [slot(a, 0), slot(a, 1), slot(a, 2), slot(b, 0), slot(b, 1), slot(b, 2)]
-            })
+            .map(|m| dofs.ends(m.nodes).map(|f| f.unwrap_or(spare)))
             .collect();
         EndSlots {
             slots,
