@@ -70,6 +70,7 @@ fn main() {
             nodal: vec![load],
             ground: None,
         },
+        actuators: Vec::new(),
         initial: Initial::default(),
     };
     let settings = Settings {

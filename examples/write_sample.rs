@@ -67,6 +67,7 @@ fn main() -> Result<()> {
             mass_reading: "physical",
             constraints: &[],
             path_modes: 0,
+            actuated: &[],
         })
     })?;
     each(&mut |r| {
@@ -123,11 +124,13 @@ fn main() -> Result<()> {
                 velocities: (stage != Stage::Folding).then_some(velocities.as_slice()),
                 forces: &forces,
                 lengths: &lengths,
+                rest_lengths: None,
                 energy: Energy {
                     kinetic: 0.5 * s,
                     strain: 100.0 - 0.5 * s,
                     damping: 0.01 * s,
                     external: 0.02 * s,
+                    actuation: 0.0,
                 },
                 applied: &applied,
                 reactions: &reactions,

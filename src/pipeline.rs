@@ -92,7 +92,16 @@ fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSumma
     let folding = cfg.folding(&model)?;
     let analysis = analyse(&structure, &unloaded);
     summary.structure_analysis = rigidity::Summary::new(&analysis);
-    record_structure(recorder, &structure, &unloaded, &found, cfg.masses.as_str(), folding.as_ref())?;
+    let actuated = cfg.actuated_stages();
+    record_structure(
+        recorder,
+        &structure,
+        &unloaded,
+        &found,
+        cfg.masses.as_str(),
+        folding.as_ref(),
+        &actuated,
+    )?;
     let skipped = analysis.as_ref().map_err(ToString::to_string);
     let record = RigidityRecord {
         analysis: skipped.as_ref().map_err(String::as_str).copied(),
@@ -215,6 +224,7 @@ fn record_structure(
     found: &FormFound,
     mass_reading: &str,
     folding: Option<&Folding>,
+    actuated: &[Stage],
 ) -> Result<()> {
     let constraints: Vec<(Stage, Constraints)> = folding.iter().map(|f| (Stage::Folding, f.constraints(&structure.model))).collect();
     let model = ModelRecord {
@@ -224,6 +234,7 @@ fn record_structure(
         mass_reading,
         constraints: &constraints,
         path_modes: folding.map_or(0, |f| f.modes),
+        actuated,
     };
     recorder.model(&model).map_err(|source| Error::Record { stage: "model", source })?;
     let mut tracker = structure.struts.clone().map(Tracker::new);

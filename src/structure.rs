@@ -125,6 +125,9 @@ pub struct State {
     /// Accelerations [m/s²]: informative; a transient starting from this state recomputes
     /// the acceleration consistent with its own loads and damping.
     pub accelerations: Vec<Vector3<f64>>,
+    /// The members' rest lengths where a stage changed them in time (actuation) [m];
+    /// `None`: the structure's own. A stage that starts from this state starts from these.
+    pub rest_lengths: Option<Vec<f64>>,
 }
 
 impl State {
@@ -136,7 +139,13 @@ impl State {
             velocities: zeros.clone(),
             accelerations: zeros,
             positions,
+            rest_lengths: None,
         }
+    }
+
+    /// The rest lengths a stage starting here evaluates `structure`'s members with [m].
+    pub fn rest_of<'s>(&'s self, structure: &'s Structure) -> &'s [f64] {
+        self.rest_lengths.as_deref().unwrap_or(&structure.elements.rest)
     }
 
     /// The velocity components on the free DOFs of `dofs`.

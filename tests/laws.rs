@@ -1,5 +1,5 @@
-//! Every force law: force = d(energy)/dl, stiffness = dN/dl and curvature = d²N/dl² by
-//! central differences;
+//! Every force law: force = d(energy)/dl, stiffness = dN/dl, curvature = d²N/dl², dN/dl0
+//! and dU/dl0 by central differences;
 //! the Ogden curve against the reference table of notes.md; the compression branch.
 
 use tsim::law::{ogden_nominal_stress, ForceLaw, LinearElastic, MeasurePotential, OgdenCord};
@@ -42,6 +42,19 @@ fn check_derivatives(law: &dyn ForceLaw, l0: f64, lengths: &[f64]) {
         assert!(
             (dr - r).abs() <= 1e-6 * r.abs().max(1e-300),
             "{}: dN/dl0 {dr} vs {r} at l={l}",
+            law.name()
+        );
+        // ∂U/∂l0, the actuator's work per metre of rest length: the budget of dE/dl
+        // above, on the scale of the force (∂U/∂l0 is a force, −N to first order), plus
+        // twice the difference's own truncation error, estimated by Richardson from the
+        // difference at 2h (U is not symmetric in l0 about l: at l = l0 a linear bar's
+        // central difference is off by h² EA/(2 l0²) = 3.4e-4 N, while ∂U/∂l0 = 0).
+        let difference = |h: f64| (law.energy(l, l0 + h) - law.energy(l, l0 - h)) / (2.0 * h);
+        let (du, truncation) = (difference(h), (difference(2.0 * h) - difference(h)).abs() / 3.0);
+        let q = law.d_energy_d_rest(l, l0);
+        assert!(
+            (du - q).abs() <= 1e-7 * scale_f.max(q.abs()) + 2.0 * truncation,
+            "{}: dU/dl0 {du} vs {q} at l={l}",
             law.name()
         );
     }

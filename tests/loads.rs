@@ -116,6 +116,7 @@ fn transient(dt: f64, steps: usize, loads: Loads, initial: Initial) -> Transient
         damped: false,
         tangent: DampingTangent::Objective,
         loads,
+        actuators: Vec::new(),
         initial,
     }
 }

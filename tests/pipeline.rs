@@ -587,9 +587,9 @@ fn objective_damping_ignores_rigid_motion() {
     let beta = 0.0052;
     let k_max = asm.states.iter().map(|s| s.stiffness.abs()).fold(0.0, f64::max);
     let mut taut = vec![false; asm.states.len()];
-    taut_members(&eq.elements, &asm.states, &mut taut);
+    taut_members(&eq.elements.laws, &eq.elements.rest, &asm.states, &mut taut);
     let mut moduli = vec![Default::default(); asm.states.len()];
-    damping_moduli(&eq.elements, &asm.states, &taut, &mut moduli);
+    damping_moduli(&eq.elements.laws, &eq.elements.rest, &asm.states, &taut, &mut moduli);
     for (omega, t) in [
         (Vector3::new(0.3, -1.1, 0.7), Vector3::zeros()),
         (Vector3::zeros(), Vector3::new(2.0, -1.0, 0.5)),
@@ -609,6 +609,7 @@ fn objective_damping_ignores_rigid_motion() {
             moduli: &moduli,
             v: &v,
             beta,
+            rest_rate: &[],
         }
         .add_force(&mut objective);
         let back = nalgebra::Rotation3::new(-omega * 1e-3);

@@ -22,6 +22,25 @@ pub struct NodalForceSpec {
     pub time: TimeFunctionSpec,
 }
 
+/// Members whose rest length changes over a transient (a winch, a motor, a cable reeled
+/// in): l0(t) = l0(0) · (1 + (scale − 1) f(t)), l0(0) the rest length the stage starts
+/// with, f the time function (e.g. `ramp` to reach `scale` and hold it). The members
+/// are `members` (ids) and those of `groups` (member groups), each in one actuation only.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ActuationSpec {
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub members: Vec<String>,
+    /// Member groups (`model.members[].groups`; a tower's `vertical`, `side0`, ...).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub groups: Vec<String>,
+    /// Rest length where f = 1 over the rest length at the stage's start (0.8: 20 %
+    /// shorter); must be positive.
+    pub scale: f64,
+    /// The time function f; e.g. `{ramp: {duration: 2.0}}`.
+    pub time: TimeFunctionSpec,
+}
+
 /// A factor f(t) of time within a stage.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]

@@ -4,7 +4,7 @@
 
 use super::loading::{InitialAcceleration, NodalVectorSpec, StaticSpec, TimeFunctionSpec};
 use super::schema::{CaseConfig, FoldTarget, LoadSpec, RayleighSpec, TransientSpec};
-use crate::dynamics::{GroundMotion, Loads, NodalLoad, Rayleigh, TimeFunction};
+use crate::dynamics::{Actuator, GroundMotion, Loads, NodalLoad, Rayleigh, TimeFunction};
 use crate::error::{Error, Result};
 use crate::law::ForceLaw;
 use crate::model::{MemberKind, Model};
@@ -144,6 +144,15 @@ impl CaseConfig {
         })
     }
 
+    /// The transient stages that change rest lengths in time (`actuation`).
+    pub fn actuated_stages(&self) -> Vec<Stage> {
+        [(Stage::FreeVibration, &self.free_vibration), (Stage::Deployment, &self.deployment)]
+            .into_iter()
+            .filter(|(_, spec)| spec.as_ref().is_some_and(|s| !s.actuation.is_empty()))
+            .map(|(stage, _)| stage)
+            .collect()
+    }
+
     /// The transient stage `spec` describes, named `stage`: the paper's `load` first, then
     /// `loads` in order, the ground motion and the initial conditions (where the stage
     /// starts, `initial.from`, is the pipeline's choice).
@@ -167,6 +176,14 @@ impl CaseConfig {
             }),
             None => None,
         };
+        let mut actuators = Vec::new();
+        for a in &spec.actuation {
+            actuators.push(Actuator {
+                members: model.member_set(&a.members, &a.groups)?,
+                scale: a.scale,
+                time: time_function(&a.time).map_err(error)?,
+            });
+        }
         let initial = spec.initial.clone().unwrap_or_default();
         let field = |entries: &[NodalVectorSpec]| -> Result<Vec<(usize, Vector3<f64>)>> {
             let mut out = Vec::new();
@@ -183,6 +200,7 @@ impl CaseConfig {
             damped: spec.damped,
             tangent: spec.damping_tangent,
             loads: Loads { nodal, ground },
+            actuators,
             initial: Initial {
                 displacement: field(&initial.displacement)?,
                 velocity: field(&initial.velocity)?,

@@ -1,5 +1,5 @@
 use super::limits::LimitSpec;
-use super::loading::{AssignSpec, GroundMotionSpec, InitialSpec, NodalForceSpec, PointMassSpec, StaticSpec};
+use super::loading::{ActuationSpec, AssignSpec, GroundMotionSpec, InitialSpec, NodalForceSpec, PointMassSpec, StaticSpec};
 use super::materials::MaterialSpec;
 use crate::dynamics::{DampingTangent, LoadProfile, NewmarkParams};
 use crate::model::generate::TowerSpec;
@@ -363,6 +363,9 @@ pub struct TransientSpec {
     pub loads: Vec<NodalForceSpec>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ground_motion: Option<GroundMotionSpec>,
+    /// Rest lengths changed in time (winches, motors), any number of entries.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub actuation: Vec<ActuationSpec>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub initial: Option<InitialSpec>,
     /// Halvings of a step whose Newton solve fails.

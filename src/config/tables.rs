@@ -28,6 +28,9 @@ impl CaseConfig {
             if let Some(g) = &mut t.ground_motion {
                 out.push((format!("{name}.ground_motion.time"), &mut g.time));
             }
+            for (k, a) in t.actuation.iter_mut().enumerate() {
+                out.push((format!("{name}.actuation[{k}].time"), &mut a.time));
+            }
         }
         out
     }

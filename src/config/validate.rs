@@ -1,5 +1,5 @@
 use super::limits::{bytes_text, Estimate, LimitSpec, Limits};
-use super::loading::{NodalVectorSpec, StartFrom, TimeFunctionSpec};
+use super::loading::{ActuationSpec, NodalVectorSpec, StartFrom, TimeFunctionSpec};
 use super::schema::*;
 use super::{LawSpec, MaterialSpec};
 use crate::model::generate::TowerSpec;
@@ -699,6 +699,7 @@ fn check_transient_loading(name: &str, t: &TransientSpec, supported: bool, model
             );
         }
     }
+    check_actuation(name, &t.actuation, model, p);
     let Some(initial) = &t.initial else { return };
     if name == "free_vibration" && initial.from == Some(StartFrom::Folded) {
         p.add(
@@ -714,6 +715,62 @@ fn check_transient_loading(name: &str, t: &TransientSpec, supported: bool, model
                 check_not_supported(&field, what, e, model, p);
             }
         }
+    }
+}
+
+/// Each actuation names known members, at least one, none taken by an earlier entry; its
+/// scale is positive and its rest length factor 1 + (scale − 1) f(t) stays positive over
+/// the range of its time function.
+fn check_actuation(name: &str, actuation: &[ActuationSpec], model: Option<&Model>, p: &mut Problems) {
+    let mut taken: Vec<Option<usize>> = model.map_or(Vec::new(), |m| vec![None; m.members.len()]);
+    for (k, a) in actuation.iter().enumerate() {
+        let field = format!("{name}.actuation[{k}]");
+        check_time_function(&format!("{field}.time"), &a.time, p);
+        p.positive(&format!("{field}.scale"), a.scale);
+        let (low, high) = time_function_range(&a.time);
+        let lowest = (1.0 + (a.scale - 1.0) * low).min(1.0 + (a.scale - 1.0) * high);
+        if a.scale > 0.0 && lowest <= 0.0 {
+            p.add(
+                format!("{field}.scale"),
+                format!(
+                    "{} with a time function between {low} and {high} gives rest lengths down to {lowest} times the start's; they must stay positive",
+                    a.scale
+                ),
+            );
+        }
+        if a.members.is_empty() && a.groups.is_empty() {
+            p.add(field, "names no member: give `members` (ids) or `groups` (member groups)");
+            continue;
+        }
+        let Some(model) = model else { continue };
+        match model.member_set(&a.members, &a.groups) {
+            Err(e) => p.add(field, e.to_string()),
+            Ok(members) => {
+                for m in members {
+                    if let Some(earlier) = taken[m].replace(k) {
+                        p.add(
+                            field.clone(),
+                            format!(
+                                "member `{}` is also actuated by {name}.actuation[{earlier}]; a member follows one actuation: merge them or split the groups",
+                                model.members[m].id
+                            ),
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The least and greatest value a time function takes.
+fn time_function_range(f: &TimeFunctionSpec) -> (f64, f64) {
+    match f {
+        TimeFunctionSpec::Constant => (1.0, 1.0),
+        TimeFunctionSpec::Step { .. } | TimeFunctionSpec::Ramp { .. } | TimeFunctionSpec::HalfSine { .. } => (0.0, 1.0),
+        TimeFunctionSpec::Harmonic { .. } => (-1.0, 1.0),
+        TimeFunctionSpec::Table { points, .. } => points
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1]))),
     }
 }
 

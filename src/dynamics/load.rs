@@ -58,6 +58,47 @@ impl TimeFunction {
         }
     }
 
+    /// df/dt at t, from the left where f has a kink or a jump (the rate at the end of a
+    /// time step that ends at t); a jump's impulse is not counted (a step function's rate
+    /// is 0).
+    pub fn rate_before(&self, t: f64) -> f64 {
+        self.rate(t, true)
+    }
+
+    /// df/dt at t, from the right (the rate at the start of a time step from t).
+    pub fn rate_after(&self, t: f64) -> f64 {
+        self.rate(t, false)
+    }
+
+    /// df/dt on the side of t `before` says. A kink within [`KINK_TOLERANCE`] of t counts
+    /// as at t: time stepped as t + Δt + Δt … reaches a ramp's end 0.1 s as
+    /// 0.10000000000000006, and the step ending there must still see the ramp's rate.
+    fn rate(&self, t: f64, before: bool) -> f64 {
+        use std::f64::consts::PI;
+        // Whether t lies in the span [0, end] where f changes, on that side.
+        let within = |end: f64| {
+            let tol = KINK_TOLERANCE * end.abs().max(t.abs());
+            if before {
+                t > tol && t <= end + tol
+            } else {
+                t >= -tol && t < end - tol
+            }
+        };
+        match *self {
+            TimeFunction::Constant | TimeFunction::Step { .. } => 0.0,
+            TimeFunction::Ramp { duration } if within(duration) => 1.0 / duration,
+            TimeFunction::HalfSine { duration } if within(duration) => PI / duration * (PI * t / duration).cos(),
+            TimeFunction::Ramp { .. } | TimeFunction::HalfSine { .. } => 0.0,
+            TimeFunction::Harmonic {
+                frequency,
+                phase,
+                duration,
+            } if within(duration.unwrap_or(f64::INFINITY)) => 2.0 * PI * frequency * (2.0 * PI * frequency * t + phase).cos(),
+            TimeFunction::Harmonic { .. } => 0.0,
+            TimeFunction::Table(ref points) => table_rate(points, t, before),
+        }
+    }
+
     /// The time from which f is constant (∞ for a harmonic without end).
     pub fn end(&self) -> f64 {
         match *self {
@@ -93,6 +134,23 @@ fn table_at(points: &[[f64; 2]], t: f64) -> f64 {
     let k = points.partition_point(|p| p[0] <= t);
     let ([t0, f0], [t1, f1]) = (points[k - 1], points[k]);
     f0 + (f1 - f0) * (t - t0) / (t1 - t0)
+}
+
+/// Relative distance in time within which a time function's kink counts as at t: far
+/// above the round-off of a time summed over millions of steps (1e-16 · steps), far below
+/// any step size.
+const KINK_TOLERANCE: f64 = 1e-9;
+
+/// The slope of `points` at t: that of the segment t0 < t ≤ t1 (`before`) or
+/// t0 ≤ t < t1, a point within [`KINK_TOLERANCE`] of t taken as at t; 0 outside.
+fn table_rate(points: &[[f64; 2]], t: f64, before: bool) -> f64 {
+    let near = |p: &[f64; 2]| (p[0] - t).abs() <= KINK_TOLERANCE * p[0].abs().max(t.abs());
+    let k = points.partition_point(|p| if before { p[0] < t && !near(p) } else { p[0] <= t || near(p) });
+    if k == 0 || k == points.len() {
+        return 0.0;
+    }
+    let ([t0, f0], [t1, f1]) = (points[k - 1], points[k]);
+    (f1 - f0) / (t1 - t0)
 }
 
 /// The same force on each of a set of nodes, scaled by a time function.
@@ -282,5 +340,52 @@ mod tests {
         );
         assert_eq!((table.end(), table.final_value()), (3.0, -1.0));
         assert_eq!((TimeFunction::Constant.end(), TimeFunction::Constant.final_value()), (0.0, 1.0));
+    }
+
+    /// `rate_before` against a backward difference and `rate_after` against a forward one,
+    /// at points inside, at kinks and at the ends. h = 1e-7: the differences' truncation
+    /// (h f''/2 ≤ 1e-7 · 4π²·4) and round-off (ε/h ~ 2e-9) stay below 1e-5.
+    #[test]
+    fn time_function_rates() {
+        let functions = [
+            TimeFunction::Constant,
+            TimeFunction::Ramp { duration: 2.0 },
+            TimeFunction::HalfSine { duration: 1.0 },
+            TimeFunction::Harmonic {
+                frequency: 2.0,
+                // sin(4π + φ) = 0 at the end: no jump there.
+                phase: 0.0,
+                duration: Some(1.0),
+            },
+            TimeFunction::Table(vec![[0.0, 1.0], [1.0, 3.0], [3.0, -1.0]]),
+        ];
+        let h = 1e-7;
+        for f in &functions {
+            for t in [0.0, 0.3, 0.5, 1.0, 1.7, 2.0, 2.5, 3.0, 4.0] {
+                let backward = (f.at(t) - f.at(t - h)) / h;
+                assert!(
+                    (f.rate_before(t) - backward).abs() < 1e-5,
+                    "{f:?} before {t}: {} vs {backward}",
+                    f.rate_before(t)
+                );
+                let forward = (f.at(t + h) - f.at(t)) / h;
+                assert!(
+                    (f.rate_after(t) - forward).abs() < 1e-5,
+                    "{f:?} after {t}: {} vs {forward}",
+                    f.rate_after(t)
+                );
+            }
+        }
+        assert_eq!(
+            TimeFunction::Step { duration: 0.5 }.rate_before(0.5),
+            0.0,
+            "a jump's impulse is not a rate"
+        );
+        // A kink reached by summed steps, an ulp or a few past it, is at it.
+        let ramp = TimeFunction::Ramp { duration: 0.1 };
+        let t = (0..25).fold(0.0, |t, _| t + 0.004);
+        assert!(t > 0.1 && ramp.rate_before(t) == 10.0 && ramp.rate_after(t) == 0.0, "{t}");
+        let table = TimeFunction::Table(vec![[0.0, 0.0], [0.1, 1.0], [0.2, 1.0]]);
+        assert!(table.rate_before(t) == 10.0 && table.rate_after(t) == 0.0);
     }
 }

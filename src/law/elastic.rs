@@ -48,6 +48,15 @@ impl ForceLaw for LinearElastic {
         -self.ea * l / (l0 * l0)
     }
 
+    /// U = EA (l − l0)²/(2 l0): ∂U/∂l0 = −N − N²/(2 EA).
+    fn d_energy_d_rest(&self, l: f64, l0: f64) -> f64 {
+        if self.slack(l, l0) {
+            return 0.0;
+        }
+        let strain = (l - l0) / l0;
+        -self.ea * strain * (1.0 + 0.5 * strain)
+    }
+
     fn name(&self) -> &'static str {
         if self.tension_only {
             "elastic_tension_only"

@@ -39,6 +39,11 @@ impl ForceLaw for MeasurePotential {
         -self.eval(l, l0).stiffness
     }
 
+    /// U depends on l − l0 only: ∂U/∂l0 = −N.
+    fn d_energy_d_rest(&self, l: f64, l0: f64) -> f64 {
+        -self.eval(l, l0).force
+    }
+
     fn name(&self) -> &'static str {
         "measure_potential"
     }

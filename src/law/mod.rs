@@ -31,6 +31,10 @@ pub trait ForceLaw: Send + Sync + std::fmt::Debug {
     fn energy(&self, l: f64, l0: f64) -> f64;
     /// ∂N/∂l0 at fixed `l`: rest-length substitution solves N(l, l0) = N* for l0 with it.
     fn d_force_d_rest(&self, l: f64, l0: f64) -> f64;
+    /// ∂U/∂l0 at fixed `l` [N]: the energy a change of rest length puts into the member at
+    /// fixed ends, per metre; an actuator that changes l0 does this work
+    /// (`dynamics::Newmark`'s ledger).
+    fn d_energy_d_rest(&self, l: f64, l0: f64) -> f64;
     /// Short name for errors and outputs.
     fn name(&self) -> &'static str;
     /// Whether a member of length `l` is slack: a tension-only law carries nothing there,

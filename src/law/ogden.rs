@@ -163,6 +163,12 @@ impl ForceLaw for OgdenCord {
         -self.eval(l, l0).stiffness * l / l0
     }
 
+    /// U = A0 l0 w(λ), λ = l/l0: ∂U/∂l0 = A0 w − λ N.
+    fn d_energy_d_rest(&self, l: f64, l0: f64) -> f64 {
+        let lambda = l / l0;
+        self.area * self.energy_density(lambda) - lambda * self.eval(l, l0).force
+    }
+
     fn name(&self) -> &'static str {
         "ogden_cord"
     }

@@ -271,6 +271,7 @@ pub(super) struct OwnedFrame {
     velocities: Option<Vec<Vector3<f64>>>,
     forces: Vec<f64>,
     lengths: Vec<f64>,
+    rest_lengths: Option<Vec<f64>>,
     energy: Energy,
     applied: Vec<Vector3<f64>>,
     reactions: Vec<f64>,
@@ -294,6 +295,10 @@ impl OwnedFrame {
         }
         refill(&mut self.forces, f.forces);
         refill(&mut self.lengths, f.lengths);
+        match f.rest_lengths {
+            Some(r) => refill(self.rest_lengths.get_or_insert_with(Vec::new), r),
+            None => self.rest_lengths = None,
+        }
         refill(&mut self.applied, f.applied);
         refill(&mut self.reactions, f.reactions);
         self.equilibrium_error = f.equilibrium_error;
@@ -324,7 +329,8 @@ impl OwnedFrame {
     /// Approximate size of the frame's data [bytes].
     fn bytes(&self) -> usize {
         let vectors = self.positions.len() + self.velocities.as_ref().map_or(0, Vec::len) + self.applied.len();
-        std::mem::size_of::<Self>() + 24 * vectors + 8 * (self.forces.len() + self.lengths.len() + self.reactions.len())
+        let rest = self.rest_lengths.as_ref().map_or(0, Vec::len);
+        std::mem::size_of::<Self>() + 24 * vectors + 8 * (self.forces.len() + self.lengths.len() + rest + self.reactions.len())
     }
 
     fn as_frame(&self) -> Frame<'_> {
@@ -335,6 +341,7 @@ impl OwnedFrame {
             velocities: self.velocities.as_deref(),
             forces: &self.forces,
             lengths: &self.lengths,
+            rest_lengths: self.rest_lengths.as_deref(),
             energy: self.energy,
             applied: &self.applied,
             reactions: &self.reactions,
@@ -469,6 +476,7 @@ mod tests {
             mass_reading: "physical",
             constraints: &[],
             path_modes: 0,
+            actuated: &[],
         })
         .unwrap();
         bg.begin_stage(Stage::FreeVibration, &Constraints::new(&model, &[])).unwrap();

@@ -383,6 +383,8 @@ struct Series {
     folding: bool,
     /// Lowest modes recorded per step (folding with `folding.eigen`; 0: none).
     modes: usize,
+    /// Whether the stage changes rest lengths in time (`rest_length`, `actuator_work`).
+    actuated: bool,
     events: EventTable,
     written: usize,
     buffered: usize,
@@ -392,7 +394,8 @@ struct Series {
 
 impl Series {
     /// Column order, used by [`Series::push`]: time, [fraction], position, [velocity],
-    /// member_force, member_length, kinetic, strain, damping, external, applied_load,
+    /// member_force, member_length, kinetic, strain, damping, external, [rest_length,
+    /// actuator_work (a stage in `record.actuated`)], applied_load,
     /// reaction, equilibrium_error, [mode_omega2, lowest_mode], min_clearance,
     /// min_clearance_pair; the clearance events in a table of their own. Folding, a static stage, has `fraction` and no
     /// `velocity`. The `support` dimension (the stage's constrained directions, from
@@ -474,6 +477,23 @@ impl Series {
             let dims: &[&str] = if name.starts_with("member") { &["member"] } else { &[] };
             columns.push(g.streamed(name, dims, chunk, units, long_name)?);
         }
+        let actuated = record.actuated.contains(&stage);
+        if actuated {
+            columns.push(g.streamed(
+                "rest_length",
+                &["member"],
+                chunk,
+                "m",
+                "member rest length, changed in time by actuation",
+            )?);
+            columns.push(g.streamed(
+                "actuator_work",
+                &[],
+                chunk,
+                "J",
+                "work done on the members by changing their rest lengths since the stage began",
+            )?);
+        }
         for (name, dims, long_name) in [
             (
                 "applied_load",
@@ -536,6 +556,7 @@ impl Series {
             constraints,
             folding,
             modes,
+            actuated,
             events,
             written: 0,
             buffered: 0,
@@ -576,6 +597,13 @@ impl Series {
         let e = f.energy;
         for value in [e.kinetic, e.strain, e.damping, e.external] {
             next().push(value);
+        }
+        if self.actuated {
+            let rest = f
+                .rest_lengths
+                .ok_or_else(|| format!("HDF5: frame {} of an actuated stage lacks its rest lengths", f.step))?;
+            next().extend_from_slice(rest);
+            next().push(e.actuation);
         }
         extend_vectors(next(), f.applied);
         next().extend_from_slice(f.reactions);
@@ -1067,6 +1095,7 @@ pub(super) mod tests {
             mass_reading: "paper",
             constraints: &[(Stage::Folding, folding.clone())],
             path_modes: 0,
+            actuated: &[Stage::Deployment],
         })?;
         let forces: Vec<f64> = model
             .members
@@ -1109,7 +1138,9 @@ pub(super) mod tests {
                     strain: 2.0 * s,
                     damping: 3.0 * s,
                     external: 4.0 * s,
+                    actuation: 5.0 * s,
                 };
+                let rest = vec![1.0 - 0.001 * s; m];
                 let lengths = vec![1.0 + s; m];
                 let velocities = (stage != Stage::Folding).then_some(velocities.as_slice());
                 // Struts 0 and 1 approach by 0.01 m a step; a touch is reported at the last.
@@ -1134,6 +1165,7 @@ pub(super) mod tests {
                     velocities,
                     forces: &forces,
                     lengths: &lengths,
+                    rest_lengths: (stage == Stage::Deployment).then_some(rest.as_slice()),
                     energy,
                     applied: &vec![Vector3::new(0.0, 0.0, -s); n],
                     reactions: &(0..constraints.len()).map(|k| k as f64 + s).collect::<Vec<_>>(),
@@ -1221,6 +1253,16 @@ pub(super) mod tests {
             vec![0.0, 3.0, 6.0, 9.0, 10.0]
         );
         assert_eq!(file.dataset("deployment/member_length").unwrap().shape(), vec![5, m]);
+        // The actuated stage (deployment in `drive`) records rest lengths and the actuators'
+        // work; the others do not have them.
+        let rest = file.dataset("deployment/rest_length").unwrap().read_2d::<f64>().unwrap();
+        assert_eq!(rest.shape(), [5, m]);
+        assert_eq!(rest[[4, 0]], 1.0 - 0.001 * 10.0);
+        assert_eq!(
+            file.dataset("deployment/actuator_work").unwrap().read_raw::<f64>().unwrap(),
+            vec![0.0, 15.0, 30.0, 45.0, 50.0]
+        );
+        assert!(file.dataset("free_vibration/rest_length").is_err() && file.dataset("free_vibration/actuator_work").is_err());
         // 6 supported directions, and in folding the prescribed z of the last node.
         assert_eq!(file.dataset("deployment/reaction").unwrap().shape(), vec![5, 6]);
         let reaction = file.dataset("folding/reaction").unwrap().read_raw::<f64>().unwrap();
@@ -1356,6 +1398,7 @@ pub(super) mod tests {
             mass_reading: "physical",
             constraints: &[],
             path_modes: 0,
+            actuated: &[],
         })
         .unwrap();
         rec.begin_stage(Stage::FreeVibration, &Constraints::new(&model, &[])).unwrap();

@@ -346,8 +346,10 @@ mod msg {
         pub strain: f64,
         pub damping: f64,
         pub external: f64,
-        /// kinetic + strain + damping − external: the energy balance, constant while the
-        /// integration conserves energy.
+        /// Work done on the members by changing their rest lengths (actuation).
+        pub actuation: f64,
+        /// kinetic + strain + damping − external − actuation: the energy balance, constant
+        /// while the integration conserves energy.
         pub total: f64,
     }
 
@@ -535,7 +537,7 @@ impl McapRecorder {
         self.write_buf(self.channels.scene, ns)?;
         self.log_members(stage, step, ns, forces)?;
         if let Some(e) = energy {
-            let total = e.kinetic + e.strain + e.damping - e.external;
+            let total = e.kinetic + e.strain + e.damping - e.external - e.actuation;
             let energy = msg::Energy {
                 stage: stage.name().into(),
                 step: step as u64,
@@ -543,6 +545,7 @@ impl McapRecorder {
                 strain: e.strain,
                 damping: e.damping,
                 external: e.external,
+                actuation: e.actuation,
                 total,
             };
             self.log(self.channels.energy, ns, &energy)?;
@@ -1033,6 +1036,7 @@ mod tests {
             mass_reading: "physical",
             constraints: &[],
             path_modes: 0,
+            actuated: &[],
         })
         .unwrap();
         rec

@@ -116,6 +116,9 @@ pub struct Frame<'a> {
     pub velocities: Option<&'a [Vector3<f64>]>,
     pub forces: &'a [f64],
     pub lengths: &'a [f64],
+    /// The members' rest lengths at this step [m], in a stage that changes them in time
+    /// (declared in [`ModelRecord::actuated`]); `None` elsewhere.
+    pub rest_lengths: Option<&'a [f64]>,
     pub energy: Energy,
     /// External load applied on every node [N]: dead loads, weight, time-varying loads
     /// (and, under ground motion, −m a_g on the free directions).
@@ -167,6 +170,9 @@ pub struct ModelRecord<'a> {
     pub constraints: &'a [(Stage, Constraints)],
     /// How many of the lowest modes folding records at every step (0: none).
     pub path_modes: usize,
+    /// The stages that change rest lengths in time: their frames carry
+    /// [`Frame::rest_lengths`], and their outputs record them and the actuators' work.
+    pub actuated: &'a [Stage],
 }
 
 impl ModelRecord<'_> {

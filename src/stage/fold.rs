@@ -238,7 +238,9 @@ impl Analysis for Folding {
         let prescribed = self.resolve(&state.positions);
         let dofs = free_dofs(model, &prescribed);
         let h0 = height(&state.positions);
-        let asm = Assembly::new(model, &structure.elements, &dofs, state.positions);
+        let rest_lengths = state.rest_lengths;
+        let rest = rest_lengths.as_deref().unwrap_or(&structure.elements.rest);
+        let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, state.positions, rest);
         let mut fold = Fold {
             u: asm.free_coordinates(),
             ws: NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_sparsity(model, &dofs)),
@@ -252,7 +254,7 @@ impl Analysis for Folding {
             work: 0.0,
             secant: Vec::new(),
         };
-        let strain0 = structure.strain_energy(&fold.problem.asm.x);
+        let strain0 = fold.problem.asm.strain_energy();
         let mut frames = FrameBuilder::new(structure, &dofs);
         let applied = structure.constant_load();
         frames.begin(recorder, Stage::Folding).map_err(record_error("folding"))?;
@@ -268,9 +270,10 @@ impl Analysis for Folding {
             }
             let energy = Energy {
                 kinetic: 0.0,
-                strain: structure.strain_energy(&fold.problem.asm.x) - strain0,
+                strain: fold.problem.asm.strain_energy() - strain0,
                 damping: 0.0,
                 external: fold.work,
+                actuation: 0.0,
             };
             frames
                 .record(recorder, &fold.problem.asm, step, fold.fraction, energy, &applied)
@@ -300,7 +303,11 @@ impl Analysis for Folding {
         (summary.newton_iterations, summary.cut_steps) = (iterations_total, cuts_total);
         summary.equilibrium = frames.check.into();
         summary.height_ratio = height(&fold.problem.asm.x) / h0;
-        Ok((State::at_rest(fold.problem.asm.x), summary))
+        let end = State {
+            rest_lengths,
+            ..State::at_rest(fold.problem.asm.x)
+        };
+        Ok((end, summary))
     }
 }
 

@@ -187,6 +187,7 @@ impl FrameBuilder {
             velocities: motion.map(|_| self.velocities.as_slice()),
             forces: &self.forces,
             lengths: &self.lengths,
+            rest_lengths: motion.map(|m| m.newmark).filter(|nm| nm.is_actuated()).map(|nm| nm.rest_lengths()),
             energy,
             applied,
             reactions: &self.reactions,
@@ -215,11 +216,12 @@ pub fn non_finite(asm: &Assembly, velocities: Option<&[f64]>, energy: &Energy) -
         strain,
         damping,
         external,
+        actuation,
     } = *energy;
     let sum = asm.x.iter().map(|x| x.sum()).sum::<f64>()
         + velocities.map_or(0.0, |v| v.iter().sum())
         + asm.states.iter().map(|s| s.force).sum::<f64>()
-        + (kinetic + strain + damping + external);
+        + (kinetic + strain + damping + external + actuation);
     if sum.is_finite() {
         return None;
     }
@@ -241,6 +243,7 @@ pub fn non_finite(asm: &Assembly, velocities: Option<&[f64]>, energy: &Energy) -
         ("strain", strain),
         ("damping", damping),
         ("external work", external),
+        ("actuator work", actuation),
     ]
     .into_iter()
     .find(|(_, e)| !e.is_finite())

@@ -152,6 +152,7 @@ impl Steps<'_> {
             strain: asm.strain_energy() - self.strain0,
             damping: 0.0,
             external: self.work,
+            actuation: 0.0,
         };
         if let Some(what) = non_finite(asm, None, &energy) {
             return Err(Error::Stage {
@@ -393,7 +394,8 @@ impl Analysis for StaticLoad {
         let model = &structure.model;
         let dofs = DofMap::new(model, &[]);
         let n = model.node_count();
-        let asm = Assembly::new(model, &structure.elements, &dofs, state.positions.clone());
+        let rest = state.rest_of(structure);
+        let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, state.positions.clone(), rest);
         let mut steps = Steps {
             structure,
             dofs: &dofs,
@@ -424,7 +426,7 @@ impl Analysis for StaticLoad {
                 } else {
                     asm.x.clone()
                 };
-                let asm = Assembly::new(model, &structure.elements, &dofs, x);
+                let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, x, rest);
                 let (x, lambda) = steps.displacement_control(asm, &self.pattern(n), control, self.steps, self.max_cuts, recorder)?;
                 steps.summary.load_factor = lambda;
                 x
@@ -432,9 +434,13 @@ impl Analysis for StaticLoad {
         };
         recorder.end_stage(Stage::Static).map_err(record_error("static"))?;
         steps.summary.equilibrium = steps.frames.check.into();
-        let asm = Assembly::new(model, &structure.elements, &dofs, x);
+        let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, x, rest);
         steps.summary.lowest_stiffness = super::eigen::lowest_stiffness(&asm)?.0;
-        Ok((State::at_rest(asm.x), steps.summary))
+        let end = State {
+            rest_lengths: state.rest_lengths.clone(),
+            ..State::at_rest(asm.x)
+        };
+        Ok((end, steps.summary))
     }
 }
 

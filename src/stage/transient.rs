@@ -6,7 +6,9 @@
 use super::frames::{non_finite, FrameBuilder, Motion};
 use super::EquilibriumSummary;
 use super::{record_error, solve_error, Analysis, Settings};
-use crate::dynamics::{Damping, DampingTangent, Energy, FreeLoads, Integrator, Loads, Newmark, NewmarkParams, Rayleigh};
+use crate::dynamics::{
+    Actuator, Damping, DampingTangent, Energy, FreeLoads, Integrator, Loads, Newmark, NewmarkParams, Rayleigh, RestSchedule,
+};
 use crate::error::{Error, Result};
 use crate::model::{shape_error, MemberKind, Model};
 use crate::record::{Recorder, Stage};
@@ -26,6 +28,9 @@ pub struct Transient {
     pub tangent: DampingTangent,
     /// Nodal loads and ground motion (the structure's constant load acts besides).
     pub loads: Loads,
+    /// Members whose rest lengths change over the stage (from those of the state it starts
+    /// from); empty for none.
+    pub actuators: Vec<Actuator>,
     /// What is added to the state the stage starts from.
     pub initial: Initial,
 }
@@ -129,7 +134,7 @@ impl TransientSummary {
         }
         *mechanical = now;
         let asm = &nm.asm;
-        for ((mem, st), l0) in asm.model.members.iter().zip(&asm.states).zip(&asm.elements.rest) {
+        for ((mem, st), l0) in asm.model.members.iter().zip(&asm.states).zip(&asm.rest) {
             self.max_tension = self.max_tension.max(st.force);
             self.max_compression = self.max_compression.max(-st.force);
             match mem.kind {
@@ -199,15 +204,20 @@ impl Transient {
         let mut f0 = vec![0.0; dofs.len()];
         load_free(0.0, &mut f0);
         let v0 = state.free_velocities(&dofs);
-        let asm = Assembly::new(model, &structure.elements, &dofs, state.positions);
-        let mut nm = Newmark::new(asm, masses, v0, f0, &self.integrator(structure, settings));
+        let rest_lengths = state.rest_lengths;
+        let rest = rest_lengths.as_deref().unwrap_or(&structure.elements.rest);
+        let schedule = (!self.actuators.is_empty()).then(|| RestSchedule::new(rest.to_vec(), self.actuators.clone()));
+        let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, state.positions, rest);
+        let mut nm = Newmark::actuated(asm, masses, v0, f0, &self.integrator(structure, settings), schedule);
         if self.initial.zero_acceleration {
             nm.start_with_zero_acceleration();
         }
         let dt = self.params.dt;
         let steps = (self.duration / dt).round() as usize;
         let loaded = constant.iter().any(|f| *f != Vector3::zeros()) || self.loads.persist();
-        let load_end = (self.loads.end(), loaded);
+        // Actuators do work until their rest lengths stop changing, as loads do.
+        let actuation_end = self.actuators.iter().map(|a| a.time.end()).fold(0.0, f64::max);
+        let load_end = (self.loads.end().max(actuation_end), loaded);
         let mut summary = TransientSummary {
             steps,
             ..Default::default()
@@ -279,7 +289,7 @@ impl Transient {
         (summary.failed_iterations, summary.failed_factorizations) = (nm.retried.iterations, nm.retried.factorizations);
         summary.settle_time = settled_since;
         summary.wall_seconds = started.elapsed().as_secs_f64();
-        Ok((final_state(&nm, &dofs), summary))
+        Ok((final_state(&nm, &dofs, rest_lengths), summary))
     }
 }
 
@@ -291,8 +301,14 @@ fn mechanical_energy(e: &Energy, loaded: bool) -> f64 {
     e.kinetic + e.strain - work
 }
 
-/// The converged end of a Newmark run as a state over every node.
-fn final_state(nm: &Newmark, dofs: &DofMap) -> State {
+/// The converged end of a Newmark run as a state over every node; its rest lengths are the
+/// stage's last where it changed them, else `rest_lengths` (those it started with).
+fn final_state(nm: &Newmark, dofs: &DofMap, rest_lengths: Option<Vec<f64>>) -> State {
+    let rest_lengths = if nm.is_actuated() {
+        Some(nm.rest_lengths().to_vec())
+    } else {
+        rest_lengths
+    };
     let n = nm.asm.x.len();
     let (mut velocities, mut accelerations) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
     for i in 0..dofs.len() {
@@ -305,5 +321,6 @@ fn final_state(nm: &Newmark, dofs: &DofMap) -> State {
         positions: nm.asm.x.clone(),
         velocities,
         accelerations,
+        rest_lengths,
     }
 }

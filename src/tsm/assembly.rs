@@ -11,6 +11,9 @@ pub struct Assembly<'a> {
     pub model: &'a Model,
     pub elements: &'a Elements,
     pub dofs: &'a DofMap,
+    /// The rest length each member is evaluated with [m]: the elements' own, or those a
+    /// stage sets as it changes them in time ([`Self::set_rest`]).
+    pub rest: Vec<f64>,
     pub x: Vec<Vector3<f64>>,
     pub states: Vec<MemberState>,
     /// Internal force over all 3n directions.
@@ -23,10 +26,17 @@ pub struct Assembly<'a> {
 
 impl<'a> Assembly<'a> {
     pub fn new(model: &'a Model, elements: &'a Elements, dofs: &'a DofMap, x: Vec<Vector3<f64>>) -> Self {
+        Self::with_rest_lengths(model, elements, dofs, x, &elements.rest)
+    }
+
+    /// [`Self::new`] with the members' rest lengths `rest` in place of the elements' own
+    /// (those a state carries after a stage changed them).
+    pub fn with_rest_lengths(model: &'a Model, elements: &'a Elements, dofs: &'a DofMap, x: Vec<Vector3<f64>>, rest: &[f64]) -> Self {
         let mut a = Assembly {
             model,
             elements,
             dofs,
+            rest: rest.to_vec(),
             x,
             states: Vec::new(),
             p: vec![0.0; 3 * model.node_count()],
@@ -35,6 +45,20 @@ impl<'a> Assembly<'a> {
         };
         a.update();
         a
+    }
+
+    /// Sets the members' rest lengths (not re-evaluated: the next [`Self::set_free`] or
+    /// [`Self::update`] does that).
+    pub fn set_rest(&mut self, rest: &[f64]) {
+        self.rest.copy_from_slice(rest);
+    }
+
+    /// ∂U/∂l0 of every member at the current `x` and rest lengths, into `out` [N]
+    /// ([`crate::law::ForceLaw::d_energy_d_rest`]).
+    pub fn energy_rest_derivatives(&self, out: &mut [f64]) {
+        for (((q, s), law), &l0) in out.iter_mut().zip(&self.states).zip(&self.elements.laws).zip(&self.rest) {
+            *q = law.d_energy_d_rest(s.length, l0);
+        }
     }
 
     /// Re-evaluates member states, internal forces (over all 3n node directions, supported
@@ -48,7 +72,7 @@ impl<'a> Assembly<'a> {
         let members = &self.model.members;
         self.states.resize(members.len(), MemberState::default());
         let (mut force, mut stiff) = (0.0_f64, 0.0_f64);
-        let laws = self.elements.laws.iter().zip(&self.elements.rest);
+        let laws = self.elements.laws.iter().zip(&self.rest);
         for ((s, mem), (law, &l0)) in self.states.iter_mut().zip(members).zip(laws) {
             let [a, b] = mem.nodes;
             *s = MemberState::between(self.x[a], self.x[b], &**law, l0);
@@ -78,7 +102,7 @@ impl<'a> Assembly<'a> {
         self.states
             .iter()
             .zip(&self.elements.laws)
-            .zip(&self.elements.rest)
+            .zip(&self.rest)
             .map(|((s, law), &l0)| law.energy(s.length, l0))
             .sum()
     }

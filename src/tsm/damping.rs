@@ -1,10 +1,12 @@
 //! The stiffness-proportional term β·K of Rayleigh damping on members: the objective form
 //! β (dN/dl) l̇ e with its exact Newmark Jacobian, and the paper's β K_T v by member blocks.
 
-use super::{add_member_block, member_block, DofMap, Elements, MemberState};
+use super::{add_member_block, member_block, DofMap, MemberState};
+use crate::law::ForceLaw;
 use crate::model::Model;
 use crate::solve::TangentSink;
 use nalgebra::{Matrix3, Vector3};
+use std::sync::Arc;
 
 /// The material tangent that objective damping scales a member's extension rate by:
 /// dN/dl and d²N/dl² on the branch of its law the member was on at the step's start.
@@ -30,16 +32,16 @@ pub struct DampingModulus {
 
 /// Which members are on their taut branch (not slack) at `states`: the branch each keeps for
 /// a step's damping ([`DampingModulus`]).
-pub fn taut_members(elements: &Elements, states: &[MemberState], taut: &mut [bool]) {
-    for (((t, s), law), &l0) in taut.iter_mut().zip(states).zip(&elements.laws).zip(&elements.rest) {
+pub fn taut_members(laws: &[Arc<dyn ForceLaw>], rest: &[f64], states: &[MemberState], taut: &mut [bool]) {
+    for (((t, s), law), &l0) in taut.iter_mut().zip(states).zip(laws).zip(rest) {
         *t = !law.slack(s.length, l0);
     }
 }
 
 /// Each member's damping modulus at `states` on the branch `taut` says.
-pub fn damping_moduli(elements: &Elements, states: &[MemberState], taut: &[bool], moduli: &mut [DampingModulus]) {
+pub fn damping_moduli(laws: &[Arc<dyn ForceLaw>], rest: &[f64], states: &[MemberState], taut: &[bool], moduli: &mut [DampingModulus]) {
     for (e, (m, s)) in moduli.iter_mut().zip(states).enumerate() {
-        let (law, l0) = (&elements.laws[e], elements.rest[e]);
+        let (law, l0) = (&laws[e], rest[e]);
         *m = if !taut[e] {
             DampingModulus::default()
         } else if law.slack(s.length, l0) {
@@ -76,10 +78,13 @@ fn scatter(dofs: &DofMap, [a, b]: [usize; 2], f: &Vector3<f64>, out: &mut [f64])
 }
 
 /// Objective stiffness-proportional damping of every member at one state: an axial force
-/// β k l̇ along each member, l̇ = e·(v_b − v_a) its extension rate and k its
-/// [`DampingModulus`]. A rigid motion (v_b − v_a = ω × d) has l̇ = 0 and gets no force; the
-/// power dissipated, β k l̇², is never negative. For small motions about a state it is
-/// β K_0 v: K_T's geometric part is left out, which is what makes it objective.
+/// β k r along each member, k its [`DampingModulus`] and r = l̇ − l (l̇0/l0) its elastic
+/// extension rate: l̇ = e·(v_b − v_a), less the part a rest length changing in time takes
+/// up (a cable reeled in at constant stretch strains nothing, one reeled in between fixed
+/// ends is stretched at the rate l l̇0/l0). A rigid motion (v_b − v_a = ω × d) of members
+/// of constant rest length has r = 0 and gets no force; the power dissipated, β k r², is
+/// never negative. For small motions about a state it is β K_0 v: K_T's geometric part is
+/// left out, which is what makes it objective.
 pub struct ObjectiveDamping<'a> {
     pub model: &'a Model,
     pub dofs: &'a DofMap,
@@ -89,6 +94,15 @@ pub struct ObjectiveDamping<'a> {
     pub v: &'a [f64],
     /// Rayleigh's β [s].
     pub beta: f64,
+    /// l̇0/l0 of each member [1/s]; empty where no rest length changes.
+    pub rest_rate: &'a [f64],
+}
+
+/// A member's elastic extension rate r = e·w − l ρ (w = v_b − v_a, ρ = l̇0/l0, zero where
+/// `rest_rate` is empty).
+#[inline(always)]
+fn elastic_rate(s: &MemberState, w: &Vector3<f64>, rest_rate: &[f64], e: usize) -> f64 {
+    s.dir.dot(w) - rest_rate.get(e).map_or(0.0, |rho| rho * s.length)
 }
 
 impl ObjectiveDamping<'_> {
@@ -101,30 +115,32 @@ impl ObjectiveDamping<'_> {
 
     /// out += the damping force on the free DOFs.
     pub fn add_force(&self, out: &mut [f64]) {
-        for (_, nodes, s, m, w) in self.members() {
-            scatter(self.dofs, nodes, &(s.dir * (self.beta * m.stiffness * s.dir.dot(&w))), out);
+        for (e, nodes, s, m, w) in self.members() {
+            let rate = elastic_rate(s, &w, self.rest_rate, e);
+            scatter(self.dofs, nodes, &(s.dir * (self.beta * m.stiffness * rate)), out);
         }
     }
 
     /// Adds ∂/∂u of the damping force when the velocities follow the coordinates as
     /// v = c_v u + const (Newmark: c_v = γ/(βΔt)). Per member, with d = x_b − x_a, e = d/l,
-    /// P = I − e eᵀ, l̇ = e·w and k its modulus, the block on d is
-    /// β [c_v k e eᵀ + (dk/dl) l̇ e eᵀ + k (e (P w)ᵀ + l̇ P)/l]: not symmetric (the
+    /// P = I − e eᵀ, r = e·w − l ρ its elastic extension rate and k its modulus, the block
+    /// on d is β [(c_v k + (dk/dl) r − k ρ) e eᵀ + k (e (P w)ᵀ + r P)/l]: not symmetric (the
     /// e (P w)ᵀ term), so the step matrix needs a general (LU) factorization. With
     /// `symmetric` that term is replaced by its symmetric part, ½ (e (P w)ᵀ + P w eᵀ): the
     /// symmetric part of the Jacobian, which Cholesky factors (see [`Self::skew_bound`] for
     /// when it serves).
     pub fn add_jacobian(&self, c_v: f64, symmetric: bool, sink: &mut (impl TangentSink + ?Sized)) {
         for (e, nodes, s, m, w) in self.members() {
-            let rate = s.dir.dot(&w);
+            let rate = elastic_rate(s, &w, self.rest_rate, e);
+            let rho = self.rest_rate.get(e).copied().unwrap_or(0.0);
             let ee = s.dir * s.dir.transpose();
             let p = Matrix3::identity() - ee;
             let mut turning = s.dir * (p * w).transpose();
             if symmetric {
                 turning = (turning + turning.transpose()) * 0.5;
             }
-            let k =
-                (ee * ((c_v * m.stiffness + m.curvature * rate) * self.beta)) + (turning + p * rate) * (self.beta * m.stiffness / s.length);
+            let axial = c_v * m.stiffness + m.curvature * rate - m.stiffness * rho;
+            let k = (ee * (axial * self.beta)) + (turning + p * rate) * (self.beta * m.stiffness / s.length);
             add_member_block(self.dofs, e, nodes, &k, sink);
         }
     }
@@ -211,8 +227,13 @@ impl EndSlots {
 /// How the β term of Rayleigh damping acts on each member.
 #[derive(Clone, Copy, Debug)]
 pub enum MemberDamping<'a> {
-    /// [`ObjectiveDamping`]: β k l̇ along the member, k its modulus.
-    Objective { moduli: &'a [DampingModulus], beta: f64 },
+    /// [`ObjectiveDamping`]: β k r along the member, k its modulus, r its elastic extension
+    /// rate (`rest_rate`: l̇0/l0 per member, empty where no rest length changes).
+    Objective {
+        moduli: &'a [DampingModulus],
+        beta: f64,
+        rest_rate: &'a [f64],
+    },
     /// [`block_product`]'s: the member's block of β K (from [`scaled_blocks`]) times its
     /// relative velocity.
     Blocks(&'a [Matrix3<f64>]),
@@ -235,9 +256,9 @@ pub fn member_damping_all(
         let [a, b] = model.members[e].nodes;
         let w = velocities[b] - velocities[a];
         let f = match damping {
-            MemberDamping::Objective { moduli, beta } => {
+            MemberDamping::Objective { moduli, beta, rest_rate } => {
                 let s = &states[e];
-                s.dir * (beta * moduli[e].stiffness * s.dir.dot(&w))
+                s.dir * (beta * moduli[e].stiffness * elastic_rate(s, &w, rest_rate, e))
             }
             MemberDamping::Blocks(blocks) => blocks[e] * w,
         };
