@@ -5,6 +5,9 @@
 //!
 //! Run with `cargo test --release --test actuation`.
 
+mod common;
+
+use common::assert_field_errors;
 use nalgebra::Vector3;
 use tsim::config::{parse_case, CaseConfig};
 use tsim::model::Model;
@@ -208,11 +211,5 @@ free_vibration:
         ),
         (22, "free_vibration.actuation[4].scale", "must stay positive"),
     ];
-    for (line, field, message) in expect {
-        let at = format!("bad.yaml:{line}: `{field}`: ");
-        assert!(
-            e.lines().any(|l| l.starts_with(&at) && l.contains(message)),
-            "no `{at}…{message}` in\n{e}"
-        );
-    }
+    assert_field_errors(&e, "bad.yaml", &expect);
 }

@@ -1,5 +1,8 @@
 //! Helpers shared by the integration tests.
 
+// Each test binary compiles this module and uses a part of it.
+#![allow(dead_code)]
+
 use nalgebra::Vector3;
 use tsim::model::Model;
 use tsim::record::NoRecorder;
@@ -13,14 +16,10 @@ use tsim::tsm::Elements;
 pub struct Found {
     pub positions: Vec<Vector3<f64>>,
     pub forces: Vec<f64>,
-    #[allow(dead_code)] // each test binary compiles this module; not every one reads every field
     pub lengths: Vec<f64>,
-    #[allow(dead_code)] // as above
     pub max_reaction: f64,
-    #[allow(dead_code)] // as above
     pub iterations: usize,
     /// The lowest eigenvalue of the measure structure's K_T at the shape [N/m].
-    #[allow(dead_code)] // as above
     pub lowest_stiffness: f64,
 }
 
@@ -40,4 +39,16 @@ pub fn form_find(model: &Model, elements: &Elements, newton: &NewtonSettings) ->
         iterations: eq.residuals.len() - 1,
         lowest_stiffness: eq.lowest_stiffness,
     })
+}
+
+/// Asserts that the error text `errors` has, for each (line, field, message), a line
+/// `<file>:<line>: `<field>`: …` containing the message.
+pub fn assert_field_errors(errors: &str, file: &str, expect: &[(usize, &str, &str)]) {
+    for (line, field, message) in expect {
+        let at = format!("{file}:{line}: `{field}`: ");
+        assert!(
+            errors.lines().any(|l| l.starts_with(&at) && l.contains(message)),
+            "no `{at}…{message}` in\n{errors}"
+        );
+    }
 }
