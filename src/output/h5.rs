@@ -392,6 +392,44 @@ struct Series {
     encoder: ChunkEncoder,
 }
 
+/// The streamed member forces and lengths, the energies and, in an `actuated` stage, the
+/// rest lengths and the actuators' work, in [`Series::push`]'s order.
+fn member_and_energy_columns(g: &Dims, actuated: bool, chunk: usize) -> Result<Vec<Dataset>, Error> {
+    let mut columns = Vec::new();
+    for (name, units, long_name) in [
+        ("member_force", "N", "member force (tension > 0)"),
+        ("member_length", "m", "member length"),
+        ("kinetic_energy", "J", "kinetic energy"),
+        ("strain_energy", "J", "strain energy"),
+        ("damping_energy", "J", "energy dissipated by damping since the stage began"),
+        (
+            "external_work",
+            "J",
+            "work of external loads and prescribed displacements since the stage began",
+        ),
+    ] {
+        let dims: &[&str] = if name.starts_with("member") { &["member"] } else { &[] };
+        columns.push(g.streamed(name, dims, chunk, units, long_name)?);
+    }
+    if actuated {
+        columns.push(g.streamed(
+            "rest_length",
+            &["member"],
+            chunk,
+            "m",
+            "member rest length, changed in time by actuation",
+        )?);
+        columns.push(g.streamed(
+            "actuator_work",
+            &[],
+            chunk,
+            "J",
+            "work done on the members by changing their rest lengths since the stage began",
+        )?);
+    }
+    Ok(columns)
+}
+
 impl Series {
     /// Column order, used by [`Series::push`]: time, [fraction], position, [velocity],
     /// member_force, member_length, kinetic, strain, damping, external, [rest_length,
@@ -462,38 +500,8 @@ impl Series {
         if !folding {
             columns.push(g.streamed("velocity", &["node", "xyz"], chunk, "m s-1", "node velocity")?);
         }
-        for (name, units, long_name) in [
-            ("member_force", "N", "member force (tension > 0)"),
-            ("member_length", "m", "member length"),
-            ("kinetic_energy", "J", "kinetic energy"),
-            ("strain_energy", "J", "strain energy"),
-            ("damping_energy", "J", "energy dissipated by damping since the stage began"),
-            (
-                "external_work",
-                "J",
-                "work of external loads and prescribed displacements since the stage began",
-            ),
-        ] {
-            let dims: &[&str] = if name.starts_with("member") { &["member"] } else { &[] };
-            columns.push(g.streamed(name, dims, chunk, units, long_name)?);
-        }
         let actuated = record.actuated.contains(&stage);
-        if actuated {
-            columns.push(g.streamed(
-                "rest_length",
-                &["member"],
-                chunk,
-                "m",
-                "member rest length, changed in time by actuation",
-            )?);
-            columns.push(g.streamed(
-                "actuator_work",
-                &[],
-                chunk,
-                "J",
-                "work done on the members by changing their rest lengths since the stage began",
-            )?);
-        }
+        columns.extend(member_and_energy_columns(&g, actuated, chunk)?);
         for (name, dims, long_name) in [
             (
                 "applied_load",
