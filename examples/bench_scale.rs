@@ -14,7 +14,7 @@ mod tower;
 
 use nalgebra::Vector3;
 use tsim::dynamics::{DampingTangent, LoadProfile, Loads, NewmarkParams, NodalLoad, Rayleigh};
-use tsim::record::{NoRecorder, Stage};
+use tsim::record::{NoRecorder, Stage, StageKind};
 use tsim::solve::{LinearSolverChoice, NewtonSettings};
 use tsim::stage::transient::{Initial, Transient};
 use tsim::stage::{Analysis, Settings};
@@ -43,12 +43,8 @@ fn main() {
         Some("sparse") => LinearSolverChoice::Sparse,
         _ => LinearSolverChoice::Auto,
     };
-    let mut structure = tower::nominal_tower(12, stages);
+    let structure = tower::nominal_tower(12, stages);
     let x0 = structure.model.positions();
-    structure.damping = Rayleigh {
-        alpha: 1.612,
-        beta: 0.0052,
-    };
     let model = &structure.model;
     let dof = DofMap::new(model, &[]).len();
     let load = NodalLoad::launch(
@@ -58,13 +54,16 @@ fn main() {
         LoadProfile::Step,
     );
     let transient = Transient {
-        stage: Stage::Deployment,
+        stage: Stage::new(StageKind::Transient, "deployment"),
         params: NewmarkParams {
             dt: 0.001,
             ..Default::default()
         },
         duration: steps as f64 * 0.001,
-        damped: true,
+        rayleigh: Rayleigh {
+            alpha: 1.612,
+            beta: 0.0052,
+        },
         tangent: DampingTangent::LastConverged,
         loads: Loads {
             nodal: vec![load],

@@ -6,7 +6,7 @@
 
 use tsim::config::{parse_case, CaseConfig, MassReading};
 use tsim::dynamics::Rayleigh;
-use tsim::pipeline::run_case;
+use tsim::pipeline::{run_case, StageSummary};
 use tsim::record::NoRecorder;
 
 fn main() {
@@ -25,7 +25,7 @@ fn main() {
             ..cfg.clone()
         };
         let s = run_case(&eigen_only, &mut NoRecorder).unwrap_or_else(|e| panic!("{e}"));
-        let e = s.eigen.expect("paper.yaml has an eigen section");
+        let e = s.eigen("eigen").expect("paper.yaml has an eigen section").clone();
         println!("== masses: {reading:?} (total {:.6} kg)", s.substitution.total_mass);
         let (w3, w20) = (e.omega2[2], e.omega2[19]);
         let r = Rayleigh::from_modes(w3.sqrt(), w20.sqrt(), 0.2, 0.2);
@@ -66,7 +66,7 @@ fn main() {
         println!("\n== whole pipeline, masses {reading:?}: wall {wall:.3?}");
         match result {
             Ok(mut s) => {
-                if let Some(e) = s.eigen.as_mut() {
+                if let Some(StageSummary::Eigen(e)) = s.stages.get_mut("eigen") {
                     e.omega2.clear();
                     e.frequency_hz.clear();
                 }

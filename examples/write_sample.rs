@@ -23,7 +23,8 @@ use tsim::output::h5::Hdf5Recorder;
 use tsim::output::replay::McapRecorder;
 use tsim::output::Background;
 use tsim::record::{
-    Constraints, EigenRecord, Energy, FormFindRecord, Frame, FrameClearance, ModelRecord, Nearest, Outcome, Recorder, Stage,
+    Constraints, EigenRecord, Energy, FormFindRecord, Frame, FrameClearance, ModelRecord, Nearest, Outcome, Recorder, Stage, StageKind,
+    StageLayout,
 };
 
 type Result<T> = std::result::Result<T, Box<dyn std::error::Error + Send + Sync>>;
@@ -59,20 +60,29 @@ fn main() -> Result<()> {
         .map(|mb| if mb.kind == MemberKind::Strut { -10.0 } else { 5.0 })
         .collect();
     let (rest, masses) = (vec![1.0; m], vec![2.0; n]);
+    let layout = |kind, name| StageLayout::plain(&model, Stage::new(kind, name));
+    let stages = [
+        StageLayout {
+            placeholder: true,
+            ..layout(StageKind::Static, "static")
+        },
+        layout(StageKind::Eigen, "eigen"),
+        layout(StageKind::Transient, "free_vibration"),
+        layout(StageKind::Folding, "folding"),
+        layout(StageKind::Transient, "deployment"),
+    ];
     each(&mut |r| {
         r.model(&ModelRecord {
             model: &model,
             rest_lengths: &rest,
             masses: &masses,
             mass_reading: "physical",
-            constraints: &[],
-            path_modes: 0,
-            actuated: &[],
+            stages: &stages,
         })
     })?;
     each(&mut |r| {
         r.formfinding(&FormFindRecord {
-            stage: Stage::FormFinding,
+            stage: &Stage::of(StageKind::FormFinding),
             residuals: &[1.0, 1e-3, 1e-9],
             positions: &x0,
             forces: &forces,
@@ -81,6 +91,7 @@ fn main() -> Result<()> {
     })?;
     let shapes = vec![vec![Vector3::new(0.0, 0.0, 1.0); n]; 4];
     let eigen = EigenRecord {
+        stage: &stages[1].stage,
         omega2: &[1.0, 4.0, 9.0, 16.0],
         mode_shapes: &shapes,
         rayleigh_alpha: 0.1,
@@ -90,10 +101,11 @@ fn main() -> Result<()> {
     };
     each(&mut |r| r.eigen(&eigen))?;
 
-    for stage in [Stage::FreeVibration, Stage::Folding, Stage::Deployment] {
-        let steps = match stage {
-            Stage::Folding => 21,
-            Stage::FreeVibration if slow => 3000,
+    for stage in stages[2..].iter().map(|l| &l.stage) {
+        let folding = stage.kind == StageKind::Folding;
+        let steps = match stage.name() {
+            "folding" => 21,
+            "free_vibration" if slow => 3000,
             _ => 301,
         };
         let supports = Constraints::new(&model, &[]);
@@ -107,7 +119,7 @@ fn main() -> Result<()> {
             .map(|c| if c.axis == 2 { n as f64 / vertical } else { 0.0 })
             .collect();
         for step in 0..=steps {
-            if slow && stage == Stage::FreeVibration {
+            if slow && stage.name() == "free_vibration" {
                 std::thread::sleep(std::time::Duration::from_millis(2));
             }
             if step % every != 0 && step != steps {
@@ -119,9 +131,9 @@ fn main() -> Result<()> {
             let lengths = vec![1.0 + s; m];
             let frame = Frame {
                 step,
-                time: if stage == Stage::Folding { s / steps as f64 } else { 1e-3 * s },
+                time: if folding { s / steps as f64 } else { 1e-3 * s },
                 positions: &positions,
-                velocities: (stage != Stage::Folding).then_some(velocities.as_slice()),
+                velocities: (!folding).then_some(velocities.as_slice()),
                 forces: &forces,
                 lengths: &lengths,
                 rest_lengths: None,

@@ -14,7 +14,7 @@ pub enum Error {
     /// `String`: it keeps `Error` small enough to return by value everywhere).
     #[error("{stage}{}: {}{}", step_text(*.step, *.time), source.describe(at.as_deref()), smaller_steps(stage, source))]
     Solve {
-        stage: &'static str,
+        stage: StageName,
         step: Option<usize>,
         time: Option<f64>,
         source: SolveError,
@@ -23,14 +23,14 @@ pub enum Error {
     #[error("substitution: member `{member}`: {reason}")]
     Substitution { member: String, reason: String },
     #[error("{stage}: {reason}")]
-    Stage { stage: &'static str, reason: String },
+    Stage { stage: StageName, reason: String },
     /// A failure and what the analysis of the layout says about it (form-finding of a
     /// layout without a proper self-stress).
     #[error("{source}; {note}")]
     Explained { source: Box<Error>, note: String },
     #[error("{stage}: recording failed: {source}")]
     Record {
-        stage: &'static str,
+        stage: StageName,
         #[source]
         source: RecordError,
     },
@@ -65,6 +65,10 @@ fn step_text(step: Option<usize>, time: Option<f64>) -> String {
     }
 }
 
+/// The name of the stage an error is about (a stage of the config's `stages` list is
+/// named by the user; `Arc`: as small as `&'static str`, cheap to clone).
+pub type StageName = std::sync::Arc<str>;
+
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 #[cfg(test)]
@@ -85,7 +89,7 @@ mod tests {
         };
         let text = |stage| {
             Error::Solve {
-                stage,
+                stage: StageName::from(stage),
                 step: Some(3),
                 time: None,
                 source: source(),

@@ -1,24 +1,31 @@
-//! One case, start to end (paper Figure 1): form-finding → substitution → eigen analysis
-//! (→ Rayleigh α, β) → free vibration → folding → deployment. Every stage takes the
-//! structure and a converged state and returns the state it ends in; nothing reaches back.
+//! One case, start to end (paper Figure 1): form-finding (or the given model's
+//! equilibrium) and substitution, then the planned stages ([`crate::stage::sequence`]) in
+//! order — the paper's eigen analysis (→ Rayleigh α, β), free vibration, folding and
+//! deployment, or a `stages` list. Every stage takes the structure and a converged state
+//! and returns the state it ends in; what a later stage takes from an earlier one (its
+//! start, its damping, a shape to compare with) is named in the plan, never written into
+//! the structure.
 
-use crate::config::{CaseConfig, StartFrom, TransientSpec};
+use crate::config::CaseConfig;
+use crate::dynamics::Rayleigh;
 use crate::error::{Error, Result};
 use crate::model::clearance::Tracker;
 use crate::model::{shape_error, Model};
 use crate::record::{
-    ClearanceLog, ClearanceSummary, Constraints, FormFindRecord, FrameClearance, ModelRecord, Recorder, RigidityRecord, Stage,
+    ClearanceLog, ClearanceSummary, FormFindRecord, FrameClearance, ModelRecord, Recorder, RigidityRecord, Stage, StageKind, StageLayout,
 };
 use crate::rigidity::{self, Rigidity, RigidityError};
 use crate::stage::eigen::EigenSummary;
-use crate::stage::fold::{FoldSummary, Folding};
+use crate::stage::fold::FoldSummary;
 use crate::stage::formfind::{explain_failure, FormFindSummary, SelfEquilibrium};
+use crate::stage::sequence::{Planned, PlannedStage};
 use crate::stage::static_load::StaticSummary;
 use crate::stage::substitute::{balanced_forces, SubstitutionSummary};
-use crate::stage::transient::TransientSummary;
+use crate::stage::transient::{Transient, TransientSummary};
 use crate::stage::{Analysis, Settings};
 use crate::structure::{State, Structure};
 use nalgebra::Vector3;
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 /// Key figures of every stage that ran.
@@ -32,35 +39,83 @@ pub struct CaseSummary {
     /// The equilibrium-matrix analysis of the equilibrium (s, m, stability).
     #[serde(default)]
     pub structure_analysis: rigidity::Summary,
-    /// Gravity and static loads.
-    #[serde(default, rename = "static", skip_serializing_if = "Option::is_none")]
-    pub statics: Option<StaticSummary>,
-    pub eigen: Option<EigenSummary>,
-    pub free_vibration: Option<TransientSummary>,
-    pub folding: Option<FoldSummary>,
-    pub deployment: Option<DeploymentSummary>,
+    /// The figures of each stage after the shape, by stage name (the paper's sequence:
+    /// `static`, `eigen`, `free_vibration`, `folding`, `deployment`), each with its `kind`.
+    #[serde(flatten)]
+    pub stages: BTreeMap<String, StageSummary>,
     /// Wall time of each stage that ran, recording included [s], by stage name
-    /// (`formfinding` or `equilibrium` with substitution, `static`, `eigen`,
-    /// `free_vibration`, `folding`, `deployment`).
+    /// (`formfinding` or `equilibrium` with substitution, then the stages').
     #[serde(default)]
-    pub stage_seconds: std::collections::BTreeMap<String, f64>,
+    pub stage_seconds: BTreeMap<String, f64>,
     /// The smallest strut clearance over every recorded step and the touch and
     /// pass-through events (absent with `outputs.clearance: false`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clearance: Option<ClearanceSummary>,
 }
 
+/// The figures of one stage, by its kind.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum StageSummary {
+    Static(StaticSummary),
+    Eigen(EigenSummary),
+    Transient(TransientStageSummary),
+    Folding(FoldSummary),
+}
+
+/// A transient's figures and, with `compare_to` (deployment: the pre-fold equilibrium),
+/// how far it ended from that shape.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct DeploymentSummary {
+pub struct TransientStageSummary {
     #[serde(flatten)]
     pub transient: TransientSummary,
-    /// RMS over nodes of the distance to the pre-fold equilibrium, over the tower height.
-    pub shape_error: f64,
-    /// The same against the mirror image z → −z of the pre-fold shape: small when the
+    /// RMS over nodes of the distance to the compared shape, over the tower height.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shape_error: Option<f64>,
+    /// The same against the mirror image z → −z of the compared shape: small when the
     /// tower deployed downwards (inverted).
-    pub mirror_shape_error: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mirror_shape_error: Option<f64>,
     #[serde(skip)]
     pub final_positions: Vec<Vector3<f64>>,
+}
+
+impl CaseSummary {
+    pub fn stage(&self, name: &str) -> Option<&StageSummary> {
+        self.stages.get(name)
+    }
+
+    /// The static stage `name`'s figures (the paper's: `static`).
+    pub fn statics(&self, name: &str) -> Option<&StaticSummary> {
+        match self.stage(name)? {
+            StageSummary::Static(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The eigen stage `name`'s figures (the paper's: `eigen`).
+    pub fn eigen(&self, name: &str) -> Option<&EigenSummary> {
+        match self.stage(name)? {
+            StageSummary::Eigen(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The transient `name`'s figures (the paper's: `free_vibration`, `deployment`).
+    pub fn transient(&self, name: &str) -> Option<&TransientStageSummary> {
+        match self.stage(name)? {
+            StageSummary::Transient(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The folding stage `name`'s figures (the paper's: `folding`).
+    pub fn folding(&self, name: &str) -> Option<&FoldSummary> {
+        match self.stage(name)? {
+            StageSummary::Folding(s) => Some(s),
+            _ => None,
+        }
+    }
 }
 
 /// Runs every configured stage of one case.
@@ -71,6 +126,13 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     Ok(summary)
 }
 
+/// A state the stages have reached, with the loads that hold it.
+struct Reached {
+    state: State,
+    /// The dead loads on from the static stages before it [N per node]; empty for none.
+    dead_load: Vec<Vector3<f64>>,
+}
+
 /// [`run_case`] without the clearance summary, which its recorder keeps.
 fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSummary> {
     let model = cfg.model.build()?;
@@ -78,85 +140,129 @@ fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSumma
     let mut summary = CaseSummary::default();
     let mut clock = Instant::now();
     // Wall time since the previous lap, as the stage's.
-    let mut lap = |summary: &mut CaseSummary, stage: Stage| {
-        summary.stage_seconds.insert(stage.name().into(), clock.elapsed().as_secs_f64());
+    let mut lap = |summary: &mut CaseSummary, stage: &str| {
+        summary.stage_seconds.insert(stage.into(), clock.elapsed().as_secs_f64());
         clock = Instant::now();
     };
-    // 1–2. Form-finding and substitution by real materials (or the given rest lengths).
+    // Form-finding and substitution by real materials (or the given rest lengths).
     let (mut structure, unloaded, found) = shape(cfg, &model, &settings, recorder)?;
     if !cfg.outputs.clearance {
         structure.struts = None;
     }
     summary.substitution = SubstitutionSummary::new(&structure, &unloaded)?;
     summary.substitution.require_stable(cfg.substitution.allow_unstable)?;
-    let folding = cfg.folding(&model)?;
+    let plan = cfg.stage_plan(&model)?;
     let analysis = analyse(&structure, &unloaded);
     summary.structure_analysis = rigidity::Summary::new(&analysis);
-    let actuated = cfg.actuated_stages();
-    record_structure(
-        recorder,
-        &structure,
-        &unloaded,
-        &found,
-        cfg.masses.as_str(),
-        folding.as_ref(),
-        &actuated,
-    )?;
+    let layouts = layouts(&structure.model, &plan, cfg.stages.is_empty());
+    record_structure(recorder, &structure, &unloaded, &found, cfg.masses.as_str(), &layouts)?;
     let skipped = analysis.as_ref().map_err(ToString::to_string);
     let record = RigidityRecord {
         analysis: skipped.as_ref().map_err(String::as_str).copied(),
     };
     recorder.rigidity(&record).map_err(|source| Error::Record {
-        stage: "structure_analysis",
+        stage: "structure_analysis".into(),
         source,
     })?;
-    lap(&mut summary, found.stage);
-    match found.stage {
-        Stage::FormFinding => summary.formfinding = Some(found.summary),
+    lap(&mut summary, found.stage.name());
+    match found.stage.kind {
+        StageKind::FormFinding => summary.formfinding = Some(found.summary),
         _ => summary.equilibrium = Some(found.summary),
     }
-    // Gravity and static loads, which stay on from here.
+    // Gravity acts in every stage after the shape (a static stage steps it on).
     structure.gravity = cfg.gravity();
-    let mut equilibrium = unloaded;
-    if let Some(loading) = cfg.static_stage(&model)? {
-        let (state, statics) = loading.run(&structure, equilibrium, &settings, recorder)?;
-        structure.dead_load = loading.dead_load(statics.load_factor);
-        (equilibrium, summary.statics) = (state, Some(statics));
-        lap(&mut summary, Stage::Static);
-    }
-    // 3. Eigen analysis at the equilibrium, and the Rayleigh damping it gives.
-    if let Some(eigen) = cfg.eigen_stage() {
-        let (_, eig) = eigen.run(&structure, equilibrium.clone(), &settings, recorder)?;
-        structure.damping = eig.rayleigh();
-        summary.eigen = Some(eig);
-        lap(&mut summary, Stage::Eigen);
-    }
-    // 4. Free vibration about the equilibrium (or as `initial.from` says).
-    let mut previous = equilibrium.clone();
-    if let Some(spec) = &cfg.free_vibration {
-        let stage = cfg.transient(spec, Stage::FreeVibration, &model)?;
-        let start = start_state(spec, StartFrom::Equilibrium, [&equilibrium, &equilibrium, &previous]);
-        let (end, transient) = stage.run(&structure, start, &settings, recorder)?;
-        (previous, summary.free_vibration) = (end, Some(transient));
-        lap(&mut summary, Stage::FreeVibration);
-    }
-    // 5. Folding from the equilibrium.
-    let mut folded = equilibrium.clone();
-    if let Some(folding) = folding {
-        let (state, fold) = folding.run(&structure, equilibrium.clone(), &settings, recorder)?;
-        (folded, previous, summary.folding) = (state.clone(), state, Some(fold));
-        lap(&mut summary, Stage::Folding);
-    }
-    // 6. Deployment from the folded state (or as `initial.from` says).
-    if let Some(spec) = &cfg.deployment {
-        let stage = cfg.transient(spec, Stage::Deployment, &model)?;
-        let start = start_state(spec, StartFrom::Folded, [&equilibrium, &folded, &previous]);
-        // The shape error at every step, for the time it comes within 1 % of the pre-fold shape.
-        let (deployed, transient) = stage.run_towards(&structure, start, &settings, recorder, Some(&equilibrium.positions))?;
-        summary.deployment = Some(DeploymentSummary::new(transient, deployed, &equilibrium));
-        lap(&mut summary, Stage::Deployment);
+    let mut reached = vec![Reached {
+        state: unloaded,
+        dead_load: Vec::new(),
+    }];
+    let mut rayleigh: Vec<Rayleigh> = Vec::with_capacity(plan.len());
+    for planned in &plan {
+        let start = &reached[planned.from];
+        structure.dead_load.clone_from(&start.dead_load);
+        let state = start.state.clone();
+        let mut dead_load = start.dead_load.clone();
+        let (end, figures) = match &planned.analysis {
+            Planned::Static(stage) => {
+                let (end, statics) = stage.run(&structure, state, &settings, recorder)?;
+                dead_load = stage.dead_load(&dead_load, statics.load_factor);
+                (end, StageSummary::Static(statics))
+            }
+            Planned::Eigen(stage) => {
+                let (end, eigen) = stage.run(&structure, state, &settings, recorder)?;
+                (end, StageSummary::Eigen(eigen))
+            }
+            Planned::Transient {
+                stage,
+                rayleigh_from,
+                compare_to,
+            } => {
+                let stage = Transient {
+                    rayleigh: rayleigh_from.map_or_else(Rayleigh::default, |k| rayleigh[k]),
+                    ..stage.clone()
+                };
+                // The shape error at every step, for the time it comes within 1 % of the compared shape.
+                let compared = compare_to.map(|k| &reached[k].state);
+                let (end, transient) = stage.run_towards(&structure, state, &settings, recorder, compared.map(|s| &s.positions[..]))?;
+                let figures = TransientStageSummary::new(transient, &end, compared);
+                (end, StageSummary::Transient(figures))
+            }
+            Planned::Folding(stage) => {
+                let (end, fold) = stage.run(&structure, state, &settings, recorder)?;
+                (end, StageSummary::Folding(fold))
+            }
+        };
+        rayleigh.push(match &figures {
+            StageSummary::Eigen(e) => e.rayleigh(),
+            _ => Rayleigh::default(),
+        });
+        let name = planned.stage().name();
+        summary.stages.insert(name.into(), figures);
+        lap(&mut summary, name);
+        reached.push(Reached { state: end, dead_load });
     }
     Ok(summary)
+}
+
+/// What the outputs are told of the stages before any runs: each planned stage, and for
+/// the paper's sequence (`paper`) a placeholder for each of its stepped stages that does
+/// not run, so that its files keep one layout whichever sections a case gives.
+fn layouts(model: &Model, plan: &[PlannedStage], paper: bool) -> Vec<StageLayout> {
+    let layout = |p: &PlannedStage| {
+        let plain = StageLayout::plain(model, p.stage().clone());
+        match &p.analysis {
+            Planned::Folding(f) => StageLayout {
+                constraints: f.constraints(model),
+                path_modes: f.modes,
+                ..plain
+            },
+            Planned::Transient { stage, .. } => StageLayout {
+                actuated: !stage.actuators.is_empty(),
+                ..plain
+            },
+            _ => plain,
+        }
+    };
+    let planned: Vec<StageLayout> = plan.iter().map(layout).collect();
+    if !paper {
+        return planned;
+    }
+    let paper_stages = [
+        (StageKind::Static, "static"),
+        (StageKind::Eigen, "eigen"),
+        (StageKind::Transient, "free_vibration"),
+        (StageKind::Folding, "folding"),
+        (StageKind::Transient, "deployment"),
+    ];
+    paper_stages
+        .into_iter()
+        .filter_map(|(kind, name)| match planned.iter().find(|l| l.stage.name() == name) {
+            Some(l) => Some(l.clone()),
+            None => kind.is_stepped().then(|| StageLayout {
+                placeholder: true,
+                ..StageLayout::plain(model, Stage::new(kind, name))
+            }),
+        })
+        .collect()
 }
 
 /// The equilibrium-matrix analysis at the equilibrium `state` with the real structure's
@@ -168,20 +274,10 @@ fn analyse(structure: &Structure, state: &State) -> Result<Rigidity, RigidityErr
     rigidity::analyse(&structure.model, &state.positions, Some(&forces))
 }
 
-/// The state a transient starts from: its `initial.from`, else `default`; the candidates
-/// are [equilibrium, folded, previous] (the end of the stage run just before).
-fn start_state(spec: &TransientSpec, default: StartFrom, [equilibrium, folded, previous]: [&State; 3]) -> State {
-    match spec.initial.as_ref().and_then(|i| i.from).unwrap_or(default) {
-        StartFrom::Equilibrium => equilibrium.clone(),
-        StartFrom::Folded => folded.clone(),
-        StartFrom::Previous => previous.clone(),
-    }
-}
-
 /// What form-finding (or the given model's equilibrium) leaves for the records besides
 /// the state.
 struct FormFound {
-    /// `FormFinding` or `Equilibrium`.
+    /// `formfinding` or `equilibrium`.
     stage: Stage,
     summary: FormFindSummary,
     /// Balanced member forces of the form-found shape [N].
@@ -198,7 +294,7 @@ fn shape(cfg: &CaseConfig, model: &Model, settings: &Settings, recorder: &mut dy
         let (equilibrium, found) = SelfEquilibrium::GIVEN.run(&structure, start, settings, recorder)?;
         let summary = FormFindSummary::new(&found, &equilibrium, &found.forces);
         let forces = found.forces;
-        let stage = Stage::Equilibrium;
+        let stage = Stage::of(StageKind::Equilibrium);
         return Ok((structure, equilibrium, FormFound { stage, summary, forces }));
     };
     let form_find = |recorder: &mut dyn Recorder| {
@@ -209,38 +305,35 @@ fn shape(cfg: &CaseConfig, model: &Model, settings: &Settings, recorder: &mut dy
     let forces = balanced_forces(model, &shape.positions, &found.forces);
     let structure = materials.substitute(model, &shape, &forces, cfg.substitution.prestress_scale)?;
     let summary = FormFindSummary::new(&found, &shape, &forces);
-    let stage = Stage::FormFinding;
+    let stage = Stage::of(StageKind::FormFinding);
     Ok((structure, shape, FormFound { stage, summary, forces }))
 }
 
-/// The model record (real rest lengths and masses), then form-finding's (or the given
-/// model's equilibrium), with the clearance of its struts. Folding's prescribed directions
-/// (reactions too) and its modes per step are declared here: the outputs fix their layout
-/// before streaming starts.
+/// The model record (real rest lengths and masses) with the stages' layouts, then
+/// form-finding's (or the given model's equilibrium), with the clearance of its struts.
 fn record_structure(
     recorder: &mut dyn Recorder,
     structure: &Structure,
     shape: &State,
     found: &FormFound,
     mass_reading: &str,
-    folding: Option<&Folding>,
-    actuated: &[Stage],
+    stages: &[StageLayout],
 ) -> Result<()> {
-    let constraints: Vec<(Stage, Constraints)> = folding.iter().map(|f| (Stage::Folding, f.constraints(&structure.model))).collect();
     let model = ModelRecord {
         model: &structure.model,
         rest_lengths: &structure.elements.rest,
         masses: &structure.masses,
         mass_reading,
-        constraints: &constraints,
-        path_modes: folding.map_or(0, |f| f.modes),
-        actuated,
+        stages,
     };
-    recorder.model(&model).map_err(|source| Error::Record { stage: "model", source })?;
+    recorder.model(&model).map_err(|source| Error::Record {
+        stage: "model".into(),
+        source,
+    })?;
     let mut tracker = structure.struts.clone().map(Tracker::new);
     let nearest = tracker.as_mut().map(|t| t.observe(&shape.positions, 0, 0.0));
     let record = FormFindRecord {
-        stage: found.stage,
+        stage: &found.stage,
         residuals: &found.summary.residuals,
         positions: &shape.positions,
         forces: &found.forces,
@@ -250,20 +343,20 @@ fn record_structure(
         }),
     };
     recorder.formfinding(&record).map_err(|source| Error::Record {
-        stage: found.stage.name(),
+        stage: found.stage.name.clone(),
         source,
     })
 }
 
-impl DeploymentSummary {
-    /// The stage's figures and how far it ended from the pre-fold `equilibrium`.
-    fn new(transient: TransientSummary, deployed: State, equilibrium: &State) -> Self {
-        let (shape_error, mirror_shape_error) = shape_error(&deployed.positions, &equilibrium.positions);
-        DeploymentSummary {
+impl TransientStageSummary {
+    /// The stage's figures and how far it ended from the `compared` state.
+    fn new(transient: TransientSummary, end: &State, compared: Option<&State>) -> Self {
+        let errors = compared.map(|c| shape_error(&end.positions, &c.positions));
+        TransientStageSummary {
             transient,
-            shape_error,
-            mirror_shape_error,
-            final_positions: deployed.positions,
+            shape_error: errors.map(|e| e.0),
+            mirror_shape_error: errors.map(|e| e.1),
+            final_positions: end.positions.clone(),
         }
     }
 }

@@ -3,7 +3,6 @@
 //! velocities, accelerations, time). Every stage takes a structure and a converged state
 //! and returns the converged state it ends in.
 
-use crate::dynamics::Rayleigh;
 use crate::model::clearance::Struts;
 use crate::model::Model;
 use crate::tsm::{DofMap, Elements};
@@ -20,8 +19,6 @@ pub struct Structure {
     /// Lumped mass of every node [kg]; empty for a structure that never moves
     /// dynamically (form-finding's virtual one).
     pub masses: Vec<f64>,
-    /// Rayleigh damping C = αM + βK, set by the eigen stage (zero until then).
-    pub damping: Rayleigh,
     /// Acceleration of gravity [m/s²]: the weight m g of every node's mass is a load in
     /// every stage (zero for none).
     pub gravity: Vector3<f64>,
@@ -39,7 +36,6 @@ impl Structure {
             model,
             elements,
             masses: Vec::new(),
-            damping: Rayleigh::default(),
             gravity: Vector3::zeros(),
             dead_load: Vec::new(),
             struts: None,

@@ -12,7 +12,7 @@ use nalgebra::Vector3;
 use tsim::config::{parse_case, CaseConfig};
 use tsim::model::Model;
 use tsim::pipeline::run_case;
-use tsim::record::{Constraints, Energy, Frame, RecordResult, Recorder, Stage};
+use tsim::record::{Constraints, Energy, Frame, RecordResult, Recorder};
 
 fn config(dt: f64, duration: f64) -> CaseConfig {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/examples/tower_actuation.yaml");
@@ -47,7 +47,8 @@ struct Samples {
 
 impl Recorder for Samples {
     fn model(&mut self, record: &tsim::record::ModelRecord) -> RecordResult {
-        assert_eq!(record.actuated, [Stage::FreeVibration]);
+        let actuated: Vec<&str> = record.stages.iter().filter(|l| l.actuated).map(|l| l.stage.name()).collect();
+        assert_eq!(actuated, ["free_vibration"]);
         self.rest_at_start = record.rest_lengths.to_vec();
         Ok(())
     }
@@ -88,7 +89,7 @@ fn run(dt: f64, times: &[f64]) -> (Vec<Sample>, f64, Vec<f64>) {
     };
     let summary = run_case(&cfg, &mut samples).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(samples.kept.len(), times.len(), "every sample time is a step at dt = {dt}");
-    let fv = summary.free_vibration.unwrap();
+    let fv = summary.transient("free_vibration").unwrap().transient.clone();
     assert_eq!(fv.cut_steps, 0);
     (samples.kept, fv.max_balance_error, samples.rest_at_start)
 }

@@ -56,12 +56,12 @@ struct StepAllocations {
 }
 
 impl Recorder for StepAllocations {
-    fn begin_stage(&mut self, stage: Stage, _constraints: &Constraints) -> RecordResult {
-        self.stage = Some(stage);
+    fn begin_stage(&mut self, stage: &Stage, _constraints: &Constraints) -> RecordResult {
+        self.stage = Some(stage.clone());
         Ok(())
     }
     fn frame(&mut self, _frame: &Frame) -> RecordResult {
-        if self.stage == Some(Stage::Deployment) {
+        if self.stage.as_ref().is_some_and(|s| s.name() == "deployment") {
             assert!(self.counts.len() < self.counts.capacity(), "reserve more frames");
             self.counts.push(allocations());
         }

@@ -21,7 +21,7 @@ use tsim::dynamics::{DampingTangent, GroundMotion, Loads, NewmarkParams, NodalLo
 use tsim::law::{ForceLaw, LinearElastic};
 use tsim::model::{Member, MemberKind, Model, Node};
 use tsim::pipeline::run_case;
-use tsim::record::{Energy, Frame, ModelRecord, RecordResult, Recorder, Stage};
+use tsim::record::{Energy, Frame, ModelRecord, RecordResult, Recorder, Stage, StageKind};
 use tsim::stage::transient::{Initial, Transient, TransientSummary};
 use tsim::stage::{Analysis, Settings};
 use tsim::structure::{State, Structure};
@@ -47,21 +47,26 @@ impl Recorder for Log {
         self.masses = record.masses.to_vec();
         Ok(())
     }
-    fn begin_stage(&mut self, stage: Stage, _constraints: &tsim::record::Constraints) -> RecordResult {
-        self.stage = Some(stage);
+    fn begin_stage(&mut self, stage: &Stage, _constraints: &tsim::record::Constraints) -> RecordResult {
+        self.stage = Some(stage.clone());
         Ok(())
     }
     fn frame(&mut self, f: &Frame) -> RecordResult {
         let v = f.velocities.map_or_else(Vec::new, <[_]>::to_vec);
-        self.frames
-            .push((self.stage.expect("frame inside a stage"), f.time, f.positions.to_vec(), v, f.energy));
+        self.frames.push((
+            self.stage.clone().expect("frame inside a stage"),
+            f.time,
+            f.positions.to_vec(),
+            v,
+            f.energy,
+        ));
         Ok(())
     }
 }
 
 impl Log {
-    fn stage(&self, stage: Stage) -> impl Iterator<Item = &Logged> {
-        self.frames.iter().filter(move |f| f.0 == stage)
+    fn stage<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a Logged> {
+        self.frames.iter().filter(move |f| f.0.name() == name)
     }
 }
 
@@ -109,14 +114,14 @@ fn chain(k: f64, masses: &[f64]) -> Structure {
 
 fn transient(dt: f64, steps: usize, loads: Loads, initial: Initial) -> Transient {
     Transient {
-        stage: Stage::FreeVibration,
+        stage: Stage::new(StageKind::Transient, "free_vibration"),
         params: NewmarkParams {
             dt,
             max_cuts: 0,
             ..Default::default()
         },
         duration: dt * steps as f64,
-        damped: false,
+        rayleigh: Rayleigh::default(),
         tangent: DampingTangent::Objective,
         loads,
         actuators: Vec::new(),
@@ -378,8 +383,8 @@ fn ground_motion_on_a_prism_equals_nodal_inertia_loads() {
     let mut by_force = Log::default();
     run_case(&cfg, &mut by_force).unwrap_or_else(|e| panic!("{e}"));
     let (g, f): (Vec<_>, Vec<_>) = (
-        by_ground.stage(Stage::FreeVibration).collect(),
-        by_force.stage(Stage::FreeVibration).collect(),
+        by_ground.stage("free_vibration").collect(),
+        by_force.stage("free_vibration").collect(),
     );
     assert_eq!(g.len(), 201);
     let moved = g.iter().map(|a| (a.2[5] - g[0].2[5]).norm()).fold(0.0, f64::max);
@@ -424,7 +429,7 @@ fn initial_displacement_vibrates_at_the_eigen_frequency() {
     let cfg = parse_case(&text, "star.yaml").unwrap_or_else(|e| panic!("{e}"));
     let mut log = Log::default();
     let summary = run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("{e}"));
-    let eigen = summary.eigen.expect("eigen ran");
+    let eigen = summary.eigen("eigen").expect("eigen ran").clone();
     let w_eigen = eigen.omega2[0].sqrt();
     assert!(
         (eigen.omega2[0] / w2 - 1.0).abs() < 1e-9,
@@ -432,7 +437,7 @@ fn initial_displacement_vibrates_at_the_eigen_frequency() {
         eigen.omega2[0]
     );
     // Zero crossings of y(t) of the middle node, interpolated.
-    let y: Vec<(f64, f64)> = log.stage(Stage::FreeVibration).map(|f| (f.1, f.2[MID].y)).collect();
+    let y: Vec<(f64, f64)> = log.stage("free_vibration").map(|f| (f.1, f.2[MID].y)).collect();
     assert!((y[0].1 - a).abs() < 1e-15, "started displaced: {}", y[0].1);
     let crossings: Vec<f64> = y
         .windows(2)
@@ -505,7 +510,6 @@ fn gravity_at_the_loaded_equilibrium_stays_at_rest() {
 fn energy_balance_closes_with_time_varying_and_ground_loads() {
     let mut s = chain(K, &[M, 0.5 * M]);
     s.gravity = Vector3::new(-9.81, 0.0, 0.0);
-    s.damping = Rayleigh { alpha: 0.5, beta: 0.002 };
     let loads = Loads {
         nodal: vec![
             NodalLoad {
@@ -534,7 +538,7 @@ fn energy_balance_closes_with_time_varying_and_ground_loads() {
         ..Default::default()
     };
     let mut stage = transient(0.0005, 2000, loads, initial);
-    stage.damped = true;
+    stage.rayleigh = Rayleigh { alpha: 0.5, beta: 0.002 };
     let (log, summary) = run(&s, &stage);
     let last = log.frames.last().unwrap().4;
     eprintln!(
@@ -620,9 +624,9 @@ fn csv_table_is_read_into_the_resolved_config() {
     let (mut a, mut b) = (Log::default(), Log::default());
     run_case(&cases[0].config, &mut a).unwrap_or_else(|e| panic!("{e}"));
     run_case(&inline_cfg, &mut b).unwrap_or_else(|e| panic!("{e}"));
-    let ys: Vec<f64> = a.stage(Stage::FreeVibration).map(|f| f.2[MID].y).collect();
+    let ys: Vec<f64> = a.stage("free_vibration").map(|f| f.2[MID].y).collect();
     assert!(ys.iter().any(|y| y.abs() > 1e-6), "the ground motion moved the star");
-    assert_eq!(ys, b.stage(Stage::FreeVibration).map(|f| f.2[MID].y).collect::<Vec<_>>());
+    assert_eq!(ys, b.stage("free_vibration").map(|f| f.2[MID].y).collect::<Vec<_>>());
 }
 
 /// Every CSV problem is reported at its file and line, with what to do; a missing file
@@ -747,8 +751,8 @@ fn previous_starts_where_the_last_stage_ended() {
     let cfg = parse_case(&text, "previous.yaml").unwrap_or_else(|e| panic!("{e}"));
     let mut log = Log::default();
     run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("{e}"));
-    let end = log.stage(Stage::FreeVibration).last().unwrap();
-    let start = log.stage(Stage::Deployment).next().unwrap();
+    let end = log.stage("free_vibration").last().unwrap();
+    let start = log.stage("deployment").next().unwrap();
     assert!(end.3[MID].norm() > 0.0, "free vibration ended moving");
     assert_eq!((&end.2, &end.3), (&start.2, &start.3));
 }
@@ -764,12 +768,12 @@ struct SlackLog {
 }
 
 impl Recorder for SlackLog {
-    fn begin_stage(&mut self, stage: Stage, _constraints: &tsim::record::Constraints) -> RecordResult {
-        self.stage = Some(stage);
+    fn begin_stage(&mut self, stage: &Stage, _constraints: &tsim::record::Constraints) -> RecordResult {
+        self.stage = Some(stage.clone());
         Ok(())
     }
     fn frame(&mut self, f: &Frame) -> RecordResult {
-        if self.stage == Some(Stage::Deployment) {
+        if self.stage.as_ref().is_some_and(|s| s.name() == "deployment") {
             let slack: Vec<bool> = f.forces.iter().map(|&n| n == 0.0).collect();
             if !self.slack.is_empty() {
                 self.switches += slack.iter().zip(&self.slack).filter(|(a, b)| a != b).count();
@@ -804,7 +808,7 @@ fn a_grid_with_slackening_cables_converges_as_dt_halves() {
             let cfg = parse_case(&text, "slack.yaml").unwrap_or_else(|e| panic!("{e}"));
             let mut log = SlackLog::default();
             let summary = run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("{e}"));
-            let deployment = summary.deployment.expect("deployment ran");
+            let deployment = summary.transient("deployment").expect("deployment ran");
             assert_eq!(deployment.transient.cut_steps, 0, "Δt = {dt}: {:?}", deployment.transient);
             assert!(log.switches > 1000, "Δt = {dt}: only {} slack/taut switches", log.switches);
             log.last

@@ -695,28 +695,25 @@ struct Balance {
 }
 
 impl Recorder for EnergyLog {
-    fn begin_stage(&mut self, stage: Stage, constraints: &Constraints) -> RecordResult {
-        self.stage = Some(stage);
-        self.constraints.push((stage, constraints.clone()));
+    fn begin_stage(&mut self, stage: &Stage, constraints: &Constraints) -> RecordResult {
+        self.stage = Some(stage.clone());
+        self.constraints.push((stage.clone(), constraints.clone()));
         Ok(())
     }
     fn frame(&mut self, frame: &Frame) -> RecordResult {
-        let stage = self.stage.expect("frame inside a stage");
-        self.frames.push((stage, frame.time, frame.energy));
-        if stage == Stage::Deployment {
+        let stage = self.stage.clone().expect("frame inside a stage");
+        self.frames.push((stage.clone(), frame.time, frame.energy));
+        if stage.name() == "deployment" {
             self.deployment.push(frame.positions.to_vec());
         }
+        let folding = stage.name() == "folding";
         self.balance.push(Balance {
             stage,
             reactions: frame.reactions.to_vec(),
             applied: frame.applied.to_vec(),
             equilibrium_error: frame.equilibrium_error,
             max_force: frame.forces.iter().fold(0.0, |m, f| m.max(f.abs())),
-            positions: if stage == Stage::Folding {
-                frame.positions.to_vec()
-            } else {
-                Vec::new()
-            },
+            positions: if folding { frame.positions.to_vec() } else { Vec::new() },
         });
         Ok(())
     }
@@ -738,8 +735,8 @@ fn paper_run_deployment_positions() -> &'static [Vec<Vector3<f64>>] {
 
 impl PaperRun {
     /// (time, energy) of every recorded step of a stage, the initial state first.
-    fn frames(&self, stage: Stage) -> Vec<(f64, Energy)> {
-        self.log.iter().filter(|f| f.0 == stage).map(|f| (f.1, f.2)).collect()
+    fn frames(&self, stage: &str) -> Vec<(f64, Energy)> {
+        self.log.iter().filter(|f| f.0.name() == stage).map(|f| (f.1, f.2)).collect()
     }
 }
 
@@ -773,7 +770,7 @@ fn paper_run() -> &'static PaperRun {
 #[test]
 fn free_vibration_conserves_energy() {
     let run = paper_run();
-    let fv = run.summary.free_vibration.as_ref().expect("free vibration ran");
+    let fv = &run.summary.transient("free_vibration").expect("free vibration ran").transient;
     assert_eq!(fv.steps, 3000, "3 s at Δt = 1 ms");
     assert!(fv.max_kinetic > 0.0);
     eprintln!(
@@ -789,7 +786,7 @@ fn free_vibration_conserves_energy() {
         fv.max_kinetic
     );
     // The same from the recorded ledger, step by step (undamped: D must stay 0).
-    let frames = run.frames(Stage::FreeVibration);
+    let frames = run.frames("free_vibration");
     assert_eq!(frames.len(), 3001);
     let e0 = frames[0].1.kinetic + frames[0].1.strain;
     let max_ke = frames.iter().map(|f| f.1.kinetic).fold(0.0, f64::max);
@@ -807,7 +804,7 @@ fn free_vibration_conserves_energy() {
 /// height ≤ 2 % of the initial height (issue 3).
 #[test]
 fn folding_converges_and_ends_flat() {
-    let f = paper_run().summary.folding.as_ref().expect("folding ran");
+    let f = paper_run().summary.folding("folding").expect("folding ran");
     assert_eq!(f.steps, 10);
     eprintln!(
         "folding: height ratio {:.3e}, {} Newton iterations, {} cut steps",
@@ -857,13 +854,18 @@ fn frame_balance(b: &Balance, constraints: &Constraints) -> (Vector3<f64>, f64) 
 #[test]
 fn folding_reactions_balance_and_do_the_folding_work() {
     let run = paper_run();
-    let f = run.summary.folding.as_ref().expect("folding ran");
-    let constraints = &run.constraints.iter().find(|(s, _)| *s == Stage::Folding).expect("folding began").1;
+    let f = run.summary.folding("folding").expect("folding ran");
+    let constraints = &run
+        .constraints
+        .iter()
+        .find(|(s, _)| s.name() == "folding")
+        .expect("folding began")
+        .1;
     let prescribed: Vec<usize> = (0..constraints.len()).filter(|&k| constraints.0[k].prescribed).collect();
     // paper.yaml prescribes z of the top ring and the two middle rings (5 nodes each).
     assert_eq!(prescribed.len(), 15);
     assert!(prescribed.iter().all(|&k| constraints.0[k].axis == 2));
-    let frames: Vec<&Balance> = run.balance.iter().filter(|b| b.stage == Stage::Folding).collect();
+    let frames: Vec<&Balance> = run.balance.iter().filter(|b| b.stage.name() == "folding").collect();
     assert_eq!(frames.len(), f.steps + 1);
     let free = 3 * frames[0].applied.len() - constraints.len();
     assert_eq!(free, 37);
@@ -895,7 +897,7 @@ fn folding_reactions_balance_and_do_the_folding_work() {
     assert!((summary.max_equilibrium_error_relative - worst).abs() <= 1e-12);
     // The work ledger books one trapezoid per step only when no step was cut.
     assert_eq!(f.cut_steps, 0, "paper.yaml folds without sub-steps");
-    let ledger = run.frames(Stage::Folding);
+    let ledger = run.frames("folding");
     let (mut work, mut size) = (0.0, 0.0);
     for k in 1..frames.len() {
         for &j in &prescribed {
@@ -961,11 +963,11 @@ fn dynamic_balance(balance: &[Balance], constraints: &Constraints, floor: f64, f
 #[test]
 fn deployment_dynamic_equilibrium_closes() {
     let run = paper_run();
-    let d = &run.summary.deployment.as_ref().expect("deployment ran").transient;
+    let d = &run.summary.transient("deployment").expect("deployment ran").transient;
     let constraints = &run
         .constraints
         .iter()
-        .find(|(s, _)| *s == Stage::Deployment)
+        .find(|(s, _)| s.name() == "deployment")
         .expect("deployment began")
         .1;
     assert!(constraints.0.iter().all(|c| !c.prescribed));
@@ -974,9 +976,9 @@ fn deployment_dynamic_equilibrium_closes() {
     let frames: Vec<Balance> = run
         .balance
         .iter()
-        .filter(|b| b.stage == Stage::Deployment)
+        .filter(|b| b.stage.name() == "deployment")
         .map(|b| Balance {
-            stage: b.stage,
+            stage: b.stage.clone(),
             reactions: b.reactions.clone(),
             applied: b.applied.clone(),
             equilibrium_error: b.equilibrium_error,
@@ -1016,11 +1018,11 @@ fn deployment_dynamic_equilibrium_closes() {
         (spec.duration, spec.damping_tangent) = (0.2, tangent);
         let mut log = EnergyLog::default();
         let summary = run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("{tangent:?}: {e}"));
-        let frames: Vec<Balance> = log.balance.into_iter().filter(|b| b.stage == Stage::Deployment).collect();
+        let frames: Vec<Balance> = log.balance.into_iter().filter(|b| b.stage.name() == "deployment").collect();
         let max_force = frames.iter().map(|b| b.max_force).fold(0.0, f64::max);
         let floor = roundoff_floor(&cfg, &log.deployment, max_force);
         let worst = dynamic_balance(&frames, constraints, floor, free);
-        let e = summary.deployment.unwrap().transient.equilibrium;
+        let e = summary.transient("deployment").unwrap().transient.equilibrium;
         eprintln!(
             "deployment 0.2 s ({tangent:?}): equilibrium error max {:.3e} N, {:.3e} relative; worst error/bound {worst:.2e}",
             e.max_equilibrium_error, e.max_equilibrium_error_relative
@@ -1040,13 +1042,17 @@ fn deployment_dynamic_equilibrium_closes() {
 #[test]
 fn deployment_returns_to_prefold_shape() {
     let run = paper_run();
-    let d = run.summary.deployment.as_ref().expect("deployment ran");
+    let d = run.summary.transient("deployment").expect("deployment ran");
     let t = &d.transient;
+    let (shape_error, mirror_shape_error) = (
+        d.shape_error.expect("compared with the pre-fold shape"),
+        d.mirror_shape_error.unwrap(),
+    );
     eprintln!(
         "deployment: KE(8 s)/max KE {:.3e}, shape error {:.3e}, mirror {:.3e}, balance {:.3e} of max(SE, KE) {:.4e} J, max rise {:.3e} J = {:.3e} of max KE {:.4e} J",
         t.final_kinetic / t.max_kinetic,
-        d.shape_error,
-        d.mirror_shape_error,
+        shape_error,
+        mirror_shape_error,
         t.max_balance_error / t.max_energy,
         t.max_energy,
         t.max_mechanical_rise,
@@ -1063,10 +1069,10 @@ fn deployment_returns_to_prefold_shape() {
         t.final_kinetic / t.max_kinetic
     );
     assert!(
-        d.shape_error <= 0.01,
+        shape_error <= 0.01,
         "shape error {:.3} % of the height (mirror state: {:.3} %)",
-        100.0 * d.shape_error,
-        100.0 * d.mirror_shape_error
+        100.0 * shape_error,
+        100.0 * mirror_shape_error
     );
     assert!(
         t.max_balance_error <= 0.01 * t.max_energy,
@@ -1095,7 +1101,7 @@ fn deployment_returns_to_prefold_shape() {
 
     // The same from the recorded ledger, independently of the summary's bookkeeping.
     let launch = spec.load.as_ref().expect("paper.yaml launches").duration;
-    let frames = run.frames(Stage::Deployment);
+    let frames = run.frames("deployment");
     assert_eq!(frames.len(), steps + 1);
     let e0 = frames[0].1.kinetic + frames[0].1.strain;
     let scale = frames.iter().map(|f| f.1.kinetic.max(f.1.strain)).fold(0.0, f64::max);
@@ -1152,7 +1158,7 @@ fn deployment_with_tangent_reuse_follows_full_newton() {
         (summary, log.deployment)
     };
     let ((reuse, reused), (full, log_full)) = (run(TangentUpdate::Auto), run(TangentUpdate::Full));
-    let (d, f) = (reuse.deployment.as_ref().unwrap(), full.deployment.as_ref().unwrap());
+    let (d, f) = (reuse.transient("deployment").unwrap(), full.transient("deployment").unwrap());
     let height = reuse.formfinding.as_ref().expect("the paper case form-finds").height;
     let worst = reused
         .iter()

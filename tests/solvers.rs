@@ -25,8 +25,8 @@ fn sparse_and_dense_paths_agree() {
         run_case(&c, &mut NoRecorder).unwrap()
     };
     let (dense, sparse) = (run(LinearSolverChoice::Dense), run(LinearSolverChoice::Sparse));
-    let (d, s) = (dense.deployment.unwrap(), sparse.deployment.unwrap());
-    let height = dense.formfinding.unwrap().height;
+    let (d, s) = (dense.transient("deployment").unwrap(), sparse.transient("deployment").unwrap());
+    let height = dense.formfinding.as_ref().unwrap().height;
     let gap = d
         .final_positions
         .iter()

@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 use std::sync::Arc;
 use tsim::law::{ForceLaw, LinearElastic};
 use tsim::model::{Member, MemberKind, Model, Node};
-use tsim::record::{Frame, RecordResult, Recorder};
+use tsim::record::{Frame, RecordResult, Recorder, Stage, StageKind};
 use tsim::stage::static_load::{Control, StaticLoad};
 use tsim::stage::{Analysis, Settings};
 use tsim::structure::{State, Structure};
@@ -73,6 +73,8 @@ fn hanging_bar_stretches_by_its_weight() {
     let mut structure = Structure::with_lumped_masses(model.clone(), elastic(ea, 1, vec![l0]), &[rho_a], &[0.0, point]);
     structure.gravity = Vector3::new(0.0, 0.0, -g);
     let stage = StaticLoad {
+        stage: Stage::of(StageKind::Static),
+        start_loaded: false,
         loads: vec![],
         steps: 4,
         max_cuts: 0,
@@ -131,6 +133,8 @@ fn displacement_control_passes_the_limit_point_of_the_von_mises_truss() {
     };
     let reference = 1000.0;
     let stage = StaticLoad {
+        stage: Stage::of(StageKind::Static),
+        start_loaded: false,
         loads: load_down(reference),
         steps: 40,
         max_cuts: 4,
@@ -178,6 +182,8 @@ fn displacement_control_passes_the_limit_point_of_the_von_mises_truss() {
     // the energy line search snaps through to the inverted branch (z < −h), where the
     // same closed form holds; the states in between are only reachable by control.
     let beyond = StaticLoad {
+        stage: Stage::of(StageKind::Static),
+        start_loaded: false,
         loads: load_down(1.2 * limit),
         steps: 10,
         max_cuts: 3,
@@ -212,6 +218,8 @@ fn folding_under_gravity_tracks_the_pendulum_frequency() {
     let mut structure = Structure::with_lumped_masses(model.clone(), elastic(ea, 1, vec![l0]), &[0.0], &[0.0, mass]);
     structure.gravity = Vector3::new(0.0, 0.0, -g);
     let gravity = StaticLoad {
+        stage: Stage::of(StageKind::Static),
+        start_loaded: false,
         loads: vec![],
         steps: 1,
         max_cuts: 0,
@@ -222,6 +230,7 @@ fn folding_under_gravity_tracks_the_pendulum_frequency() {
         .run(&structure, State::at_rest(model.positions()), &settings, &mut Path::default())
         .unwrap();
     let folding = Folding {
+        stage: Stage::of(StageKind::Folding),
         steps: 4,
         max_cuts: 0,
         prescribe: vec![Prescription {
@@ -331,8 +340,8 @@ struct FoldEnd {
 }
 
 impl Recorder for FoldEnd {
-    fn begin_stage(&mut self, stage: tsim::record::Stage, _constraints: &tsim::record::Constraints) -> RecordResult {
-        self.folding = stage == tsim::record::Stage::Folding;
+    fn begin_stage(&mut self, stage: &Stage, _constraints: &tsim::record::Constraints) -> RecordResult {
+        self.folding = stage.name() == "folding";
         Ok(())
     }
     fn frame(&mut self, frame: &Frame) -> RecordResult {
@@ -361,7 +370,7 @@ fn folding_a_grid_in_5_or_20_steps_ends_in_the_same_equilibrium() {
         let cfg = tsim::config::parse_case(&text, "fold.yaml").unwrap_or_else(|e| panic!("{e}"));
         let mut log = FoldEnd::default();
         let summary = tsim::pipeline::run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("{e}"));
-        let folding = summary.folding.expect("folding ran");
+        let folding = summary.folding("folding").expect("folding ran").clone();
         eprintln!(
             "{steps} steps: {} Newton iterations, {} cut",
             folding.newton_iterations, folding.cut_steps

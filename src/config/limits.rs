@@ -8,7 +8,8 @@
 //! stage holds at once plus the per-node and per-member buffers and the output writers'
 //! bounded queues.
 
-use super::schema::CaseConfig;
+use super::schema::{CaseConfig, EigenSpec};
+use super::StageEntrySpec;
 use crate::model::Model;
 use crate::solve::{krylov_dimension, LinearSolverChoice, DENSE_LIMIT};
 use crate::stage::eigen::ModeSolver;
@@ -208,29 +209,41 @@ impl CaseConfig {
                 bytes: frames * frame(dynamic),
             });
         };
-        for (stage, t) in [("free_vibration", &self.free_vibration), ("deployment", &self.deployment)] {
-            if let Some(t) = t {
-                let n_steps = (t.duration / t.dt).round();
-                let how = format!(
-                    "duration {} s / dt {} s = {n_steps} steps, every {}",
-                    t.duration, t.dt, self.outputs.every
-                );
-                frames_of(stage, &format!("{stage}.duration"), n_steps, true, how);
-                steps += n_steps;
+        let sections = self.stage_sections();
+        for (at, stage, spec) in &sections {
+            match spec {
+                StageEntrySpec::Transient(t) => {
+                    let n_steps = (t.duration / t.dt).round();
+                    let how = format!(
+                        "duration {} s / dt {} s = {n_steps} steps, every {}",
+                        t.duration, t.dt, self.outputs.every
+                    );
+                    frames_of(stage, &format!("{at}.duration"), n_steps, true, how);
+                    steps += n_steps;
+                }
+                StageEntrySpec::Folding(f) => {
+                    frames_of(stage, &format!("{at}.steps"), f.steps as f64, false, format!("{} steps", f.steps));
+                    steps += f.steps as f64;
+                }
+                StageEntrySpec::Static(s) => {
+                    // Under displacement control gravity takes its own `steps` first.
+                    let n_steps = s.steps as f64 * if s.control.is_some() { 2.0 } else { 1.0 };
+                    frames_of(stage, &format!("{at}.steps"), n_steps, false, format!("{n_steps} steps"));
+                    steps += n_steps;
+                }
+                StageEntrySpec::Eigen(_) => {}
             }
         }
-        if let Some(f) = &self.folding {
-            frames_of("folding", "folding.steps", f.steps as f64, false, format!("{} steps", f.steps));
-            steps += f.steps as f64;
-        }
-        if let Some(s) = &self.statics {
-            // Under displacement control gravity takes its own `steps` first.
-            let n_steps = s.steps as f64 * if s.control.is_some() { 2.0 } else { 1.0 };
-            frames_of("static", "static.steps", n_steps, false, format!("{n_steps} steps"));
-            steps += n_steps;
-        }
         // The eigen stage's solver: every mode dense, the lowest k partial.
-        let eigen_solver = self.eigen.as_ref().map(|e| e.mode_solver());
+        let eigens: Vec<&EigenSpec> = sections
+            .iter()
+            .filter_map(|(_, _, spec)| match spec {
+                StageEntrySpec::Eigen(e) => Some(*e),
+                _ => None,
+            })
+            .collect();
+        // Every eigen stage records its modes; their matrices are held one at a time.
+        let eigen_solver = eigens.first().map(|e| e.mode_solver());
         let eigen_partial = eigen_solver.filter(|s| s.partial(n as usize));
         if eigen_solver.is_some() {
             // Mode shapes (mode, node, xyz), ω², frequencies; MCAP has only a stage message.
@@ -238,7 +251,7 @@ impl CaseConfig {
             output.push(Part {
                 field: "eigen".into(),
                 what: format!("eigen: {shapes} mode shapes of {nodes} nodes"),
-                bytes: on(h5, 8.0 * shapes * (3.0 * nodes + 3.0)),
+                bytes: eigens.len() as f64 * on(h5, 8.0 * shapes * (3.0 * nodes + 3.0)),
             });
         }
 

@@ -11,6 +11,7 @@ mod locate;
 mod materials;
 mod plan;
 mod schema;
+mod sequence;
 mod syntax;
 mod tables;
 mod validate;
@@ -20,6 +21,7 @@ pub use limits::{bytes_text, Estimate, LimitSpec, Limits, Part, MAX_MEMORY_GB, M
 pub use loading::*;
 pub use materials::{library, LawSpec, MaterialSpec};
 pub use schema::*;
+pub use sequence::StageEntrySpec;
 pub use tables::{parse_table, TableError};
 pub use validate::{ConfigError, FieldError, ValueError};
 

@@ -46,6 +46,12 @@ pub struct CaseConfig {
     pub folding: Option<FoldSpec>,
     #[serde(default)]
     pub deployment: Option<TransientSpec>,
+    /// The stages after form-finding (or the given model's equilibrium) and substitution,
+    /// in the order given, any kind repeated: in place of the paper's sections `static`,
+    /// `eigen`, `free_vibration`, `folding`, `deployment` (which run in the paper's order
+    /// and are shorthand for such a list). Never written when empty.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub stages: Vec<StageEntry>,
     /// Newton settings shared by every stage.
     #[serde(default)]
     pub newton: NewtonSettings,
@@ -58,6 +64,32 @@ pub struct CaseConfig {
     /// never written when unset.
     #[serde(default, skip_serializing_if = "LimitSpec::is_unset")]
     pub limits: LimitSpec,
+}
+
+/// One stage of `stages`: its name, the stage whose end state it starts from, and one kind
+/// key (`static`, `eigen`, `transient`, `folding`) holding the settings of that kind, the
+/// same as the paper's section of the kind.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct StageEntry {
+    /// Unique in the case (letters, digits, `_`, `-`): the stage's HDF5 group, replay
+    /// stage and summary key.
+    pub name: String,
+    /// The stage whose end state this one starts from, with the loads that hold it: an
+    /// earlier entry, or `formfinding` (`equilibrium` without form-finding) for the
+    /// unloaded shape. Default: the entry before (the shape for the first).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub from: Option<String>,
+    /// Gravity and static loads in load steps, from the loads the start carries.
+    #[serde(rename = "static", default, skip_serializing_if = "Option::is_none")]
+    pub statics: Option<StaticSpec>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eigen: Option<EigenSpec>,
+    /// Newmark time stepping; `rayleigh_from` names the eigen stage whose damping it uses.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transient: Option<TransientSpec>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub folding: Option<FoldSpec>,
 }
 
 /// A generated tower, a generated grid, or explicit nodes and members.
@@ -351,8 +383,18 @@ pub struct TransientSpec {
     #[serde(default = "default_gamma")]
     pub newmark_gamma: f64,
     /// Rayleigh damping on (from `eigen.rayleigh`); free vibration is undamped by default.
+    /// In a `stages` entry, `rayleigh_from` names the eigen stage instead.
     #[serde(default)]
     pub damped: bool,
+    /// In a `stages` entry: the eigen stage (with `rayleigh`) whose α, β damp this one;
+    /// undamped without.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rayleigh_from: Option<String>,
+    /// In a `stages` entry: a stage whose end shape this one's is compared with (the
+    /// summary's shape error, and the settle time: when the shape comes within 1 %), as
+    /// deployment is with the pre-fold equilibrium.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compare_to: Option<String>,
     #[serde(default)]
     pub damping_tangent: DampingTangent,
     /// The paper's launch load (one force on node groups, step or half-sine).

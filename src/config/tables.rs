@@ -20,8 +20,7 @@ impl CaseConfig {
     /// Every time function of the config with its dotted field path.
     fn time_functions_mut(&mut self) -> Vec<(String, &mut TimeFunctionSpec)> {
         let mut out = Vec::new();
-        for (name, stage) in [("free_vibration", &mut self.free_vibration), ("deployment", &mut self.deployment)] {
-            let Some(t) = stage else { continue };
+        for (name, t) in self.transients_mut() {
             for (k, l) in t.loads.iter_mut().enumerate() {
                 out.push((format!("{name}.loads[{k}].time"), &mut l.time));
             }

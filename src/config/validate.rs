@@ -1,6 +1,7 @@
 use super::limits::{bytes_text, Estimate, LimitSpec, Limits};
 use super::loading::{ActuationSpec, NodalVectorSpec, StartFrom, TimeFunctionSpec};
 use super::schema::*;
+use super::StageEntrySpec;
 use super::{LawSpec, MaterialSpec};
 use crate::model::generate::TowerSpec;
 use crate::model::grid::GridSpec;
@@ -99,23 +100,10 @@ impl CaseConfig {
         let model = self.check_model(&mut p);
         self.check_materials(&mut p);
         self.check_shape(&mut p);
-        if let Some(e) = &self.eigen {
-            check_eigen(e, model.as_ref(), &mut p);
-        }
-        for (name, t) in [("free_vibration", &self.free_vibration), ("deployment", &self.deployment)] {
-            if let Some(t) = t {
-                check_transient(
-                    name,
-                    t,
-                    self.eigen.as_ref().is_some_and(|e| e.rayleigh.is_some()),
-                    model.as_ref(),
-                    &mut p,
-                );
-                check_transient_loading(name, t, self.model_has_supports(), model.as_ref(), &mut p);
-            }
-        }
-        if let Some(f) = &self.folding {
-            check_folding(f, model.as_ref(), &mut p);
+        if self.stages.is_empty() {
+            self.check_paper_stages(model.as_ref(), &mut p);
+        } else {
+            self.check_stage_list(model.as_ref(), &mut p);
         }
         self.check_loading(model.as_ref(), &mut p);
         if let Some(ff) = &self.formfinding {
@@ -157,6 +145,123 @@ impl CaseConfig {
                 Ok(estimate)
             }
             _ => Err(p.0),
+        }
+    }
+
+    /// The paper's stage sections (`eigen`, `free_vibration`, `folding`, `deployment`;
+    /// `static` with the loading).
+    fn check_paper_stages(&self, model: Option<&Model>, p: &mut Problems) {
+        if let Some(e) = &self.eigen {
+            check_eigen("eigen", e, model, p);
+        }
+        let rayleigh = self.eigen.as_ref().is_some_and(|e| e.rayleigh.is_some());
+        for (name, t) in [("free_vibration", &self.free_vibration), ("deployment", &self.deployment)] {
+            let Some(t) = t else { continue };
+            if t.damped && !rayleigh {
+                p.add(format!("{name}.damped"), "Rayleigh damping needs `eigen.rayleigh`");
+            }
+            for (key, given) in [("rayleigh_from", t.rayleigh_from.is_some()), ("compare_to", t.compare_to.is_some())] {
+                if given {
+                    p.add(
+                        format!("{name}.{key}"),
+                        "names a stage of a `stages` list; the paper's sections run in its order: remove it, or write the case as `stages`",
+                    );
+                }
+            }
+            check_transient(name, t, model, p);
+            check_transient_loading(name, t, self.model_has_supports(), model, p);
+            if name == "free_vibration" && t.initial.as_ref().is_some_and(|i| i.from == Some(StartFrom::Folded)) {
+                p.add(
+                    format!("{name}.initial.from"),
+                    "folding runs after free vibration; use `equilibrium` or `previous`",
+                );
+            }
+        }
+        if let Some(f) = &self.folding {
+            check_folding("folding", f, model, p);
+        }
+    }
+
+    /// A `stages` list: no paper section besides it; each entry one kind, a unique name,
+    /// and `from`, `rayleigh_from`, `compare_to` naming earlier stages (an eigen stage
+    /// with `rayleigh` for `rayleigh_from`).
+    fn check_stage_list(&self, model: Option<&Model>, p: &mut Problems) {
+        let sections = [
+            ("static", self.statics.is_some()),
+            ("eigen", self.eigen.is_some()),
+            ("free_vibration", self.free_vibration.is_some()),
+            ("folding", self.folding.is_some()),
+            ("deployment", self.deployment.is_some()),
+        ];
+        for (section, _) in sections.iter().filter(|(_, given)| *given) {
+            p.add(
+                *section,
+                format!(
+                    "a case with a `stages` list runs only its entries: move `{section}` into the list as an entry, or remove `stages`"
+                ),
+            );
+        }
+        // The names of the states so far (0: the shape) and of the eigen stages with damping.
+        let mut names: Vec<&str> = vec![self.shape_name()];
+        let mut damping: Vec<&str> = Vec::new();
+        for (k, entry) in self.stages.iter().enumerate() {
+            let at = format!("stages[{k}]");
+            check_stage_name(&format!("{at}.name"), &entry.name, &names, p);
+            let known = |field: &str, name: &str, p: &mut Problems| {
+                if !names.contains(&name) {
+                    p.add(format!("{at}.{field}"), unknown_stage(name, &names));
+                }
+            };
+            if let Some(from) = &entry.from {
+                known("from", from, p);
+            }
+            match entry.spec() {
+                Err(e) => p.add(at.clone(), e),
+                Ok(StageEntrySpec::Static(s)) => check_static(&format!("{at}.static"), s, self.gravity.is_some(), model, p),
+                Ok(StageEntrySpec::Eigen(e)) => {
+                    check_eigen(&format!("{at}.eigen"), e, model, p);
+                    if e.rayleigh.is_some() {
+                        damping.push(&entry.name);
+                    }
+                }
+                Ok(StageEntrySpec::Folding(f)) => check_folding(&format!("{at}.folding"), f, model, p),
+                Ok(StageEntrySpec::Transient(t)) => {
+                    let at = format!("{at}.transient");
+                    if t.damped {
+                        p.add(
+                            format!("{at}.damped"),
+                            "in a `stages` entry name the eigen stage whose damping to use: `rayleigh_from: <name>`",
+                        );
+                    }
+                    if t.initial.as_ref().is_some_and(|i| i.from.is_some()) {
+                        p.add(
+                            format!("{at}.initial.from"),
+                            "in a `stages` entry the start is the entry's `from: <stage name>`",
+                        );
+                    }
+                    if let Some(r) = t.rayleigh_from.as_deref().filter(|r| !damping.contains(r)) {
+                        let why = if names.contains(&r) {
+                            "is not an eigen stage with `rayleigh`".to_string()
+                        } else {
+                            unknown_stage(r, &names)
+                        };
+                        p.add(
+                            format!("{at}.rayleigh_from"),
+                            format!("`{r}` {why}; name an earlier eigen stage that gives `rayleigh`"),
+                        );
+                    }
+                    if let Some(c) = &t.compare_to {
+                        if !names.contains(&c.as_str()) {
+                            p.add(format!("{at}.compare_to"), unknown_stage(c, &names));
+                        }
+                    }
+                    check_transient(&at, t, model, p);
+                    check_transient_loading(&at, t, self.model_has_supports(), model, p);
+                }
+            }
+            if !names.contains(&entry.name.as_str()) {
+                names.push(&entry.name);
+            }
         }
     }
 
@@ -238,7 +343,7 @@ impl CaseConfig {
             );
         }
         if let Some(s) = &self.statics {
-            check_static(s, self.gravity.is_some(), p);
+            check_static("static", s, self.gravity.is_some(), model, p);
         }
         let Some(model) = model else { return };
         for (k, a) in self.substitution.assign.iter().enumerate() {
@@ -249,27 +354,6 @@ impl CaseConfig {
         for (k, m) in self.point_masses.iter().enumerate() {
             if let Err(e) = model.node_set(&m.nodes, &m.groups) {
                 p.add(format!("point_masses[{k}]"), e.to_string());
-            }
-        }
-        if let Some(s) = &self.statics {
-            for (k, l) in s.loads.iter().enumerate() {
-                if let Err(e) = model.node_set(&l.nodes, &l.groups) {
-                    p.add(format!("static.loads[{k}]"), e.to_string());
-                }
-            }
-            if let Some(c) = &s.control {
-                match model.nodes.iter().find(|n| n.id == c.node) {
-                    None => p.add("static.control.node", model.unknown_node(&c.node).to_string()),
-                    Some(n) if n.support[c.axis.index()] => p.add(
-                        "static.control.axis",
-                        format!(
-                            "node `{}` is supported in {}: control a free direction",
-                            n.id,
-                            crate::model::AXES[c.axis.index()]
-                        ),
-                    ),
-                    Some(_) => {}
-                }
             }
         }
         if self.gravity.is_some() && !self.has_mass(model) {
@@ -409,9 +493,12 @@ fn check_material(at: &str, mat: &MaterialSpec, p: &mut Problems) {
 }
 
 /// The partial solver's keys, and the Rayleigh modes against the modes computed.
-fn check_eigen(e: &EigenSpec, model: Option<&Model>, p: &mut Problems) {
+fn check_eigen(at: &str, e: &EigenSpec, model: Option<&Model>, p: &mut Problems) {
     if e.solver == EigenSolverChoice::Dense {
-        for (field, given) in [("eigen.modes", e.modes.is_some()), ("eigen.shift", e.shift.is_some())] {
+        for (field, given) in [
+            (format!("{at}.modes"), e.modes.is_some()),
+            (format!("{at}.shift"), e.shift.is_some()),
+        ] {
             if given {
                 p.add(
                     field,
@@ -421,19 +508,18 @@ fn check_eigen(e: &EigenSpec, model: Option<&Model>, p: &mut Problems) {
         }
     }
     if let Some(shift) = e.shift {
-        p.within("eigen.shift", shift, f64::NEG_INFINITY, f64::INFINITY, "(-∞, ∞)");
+        p.within(&format!("{at}.shift"), shift, f64::NEG_INFINITY, f64::INFINITY, "(-∞, ∞)");
     }
     let solver = e.mode_solver();
     if let Some(model) = model {
         let dof_count = 3 * model.node_count() - model.support_count();
         if e.modes.is_some_and(|k| k == 0 || k >= dof_count) {
             p.add(
-                "eigen.modes",
+                format!("{at}.modes"),
                 format!("is {}; must lie in 1..{dof_count} (the model's free DOF)", solver.modes),
             );
         } else if e.solver == EigenSolverChoice::Partial && !solver.partial(dof_count) {
-            p.add(
-                "eigen.solver",
+            p.add(format!("{at}.solver"),
                 format!(
                     "`partial` with {} modes needs more than {} free DOF (its Krylov space), the model has {dof_count}; use `dense` or fewer `eigen.modes`",
                     solver.modes,
@@ -445,7 +531,7 @@ fn check_eigen(e: &EigenSpec, model: Option<&Model>, p: &mut Problems) {
             for (k, m) in modes.iter().enumerate() {
                 if solver.partial(dof_count) && *m > solver.modes {
                     p.add(
-                        format!("eigen.rayleigh.modes[{k}]"),
+                        format!("{at}.rayleigh.modes[{k}]"),
                         format!(
                             "is {m}, but the partial eigen solver computes {} modes; raise `eigen.modes` to at least {m}",
                             solver.modes
@@ -456,16 +542,16 @@ fn check_eigen(e: &EigenSpec, model: Option<&Model>, p: &mut Problems) {
         }
     }
     if let Some(r) = &e.rayleigh {
-        check_rayleigh(r, model, p);
+        check_rayleigh(at, r, model, p);
     }
 }
 
 /// Which keys are given is settled by the type; what remains are the ranges.
-fn check_rayleigh(r: &RayleighSpec, model: Option<&Model>, p: &mut Problems) {
+fn check_rayleigh(at: &str, r: &RayleighSpec, model: Option<&Model>, p: &mut Problems) {
     match r {
         RayleighSpec::Given { alpha, beta } => {
-            for (field, v) in [("eigen.rayleigh.alpha", alpha), ("eigen.rayleigh.beta", beta)] {
-                p.within(field, *v, -1e-300, f64::INFINITY, "[0, ∞)");
+            for (field, v) in [(format!("{at}.rayleigh.alpha"), alpha), (format!("{at}.rayleigh.beta"), beta)] {
+                p.within(&field, *v, -1e-300, f64::INFINITY, "[0, ∞)");
             }
         }
         RayleighSpec::Modes { modes, ratios } => {
@@ -474,24 +560,24 @@ fn check_rayleigh(r: &RayleighSpec, model: Option<&Model>, p: &mut Problems) {
                 for (k, m) in modes.iter().enumerate() {
                     if *m < 1 || *m > dof_count {
                         p.add(
-                            format!("eigen.rayleigh.modes[{k}]"),
+                            format!("{at}.rayleigh.modes[{k}]"),
                             format!("is {m}; must lie in 1..={dof_count} (the model has {dof_count} DOF)"),
                         );
                     }
                 }
             }
             if modes[0] == modes[1] {
-                p.add("eigen.rayleigh.modes", "the two modes must differ");
+                p.add(format!("{at}.rayleigh.modes"), "the two modes must differ");
             }
-            check_ratios(ratios, p);
+            check_ratios(at, ratios, p);
         }
-        RayleighSpec::AutoModes { ratios, .. } => check_ratios(ratios, p),
+        RayleighSpec::AutoModes { ratios, .. } => check_ratios(at, ratios, p),
     }
 }
 
-fn check_ratios(ratios: &[f64; 2], p: &mut Problems) {
+fn check_ratios(at: &str, ratios: &[f64; 2], p: &mut Problems) {
     for (k, z) in ratios.iter().enumerate() {
-        p.within(&format!("eigen.rayleigh.ratios[{k}]"), *z, -1e-300, 1.0, "[0, 1)");
+        p.within(&format!("{at}.rayleigh.ratios[{k}]"), *z, -1e-300, 1.0, "[0, 1)");
     }
 }
 
@@ -513,6 +599,43 @@ fn check_name(name: &str, p: &mut Problems) {
 
 /// Table 1's coefficients: positive and finite (a zero or negative C has no self-stress
 /// to find; n ≥ 1 keeps the potential convex in the length).
+/// Names an HDF5 group and a summary key: letters, digits, `_`, `-`; not taken by an
+/// earlier stage or the file's own groups.
+fn check_stage_name(field: &str, name: &str, earlier: &[&str], p: &mut Problems) {
+    let valid = !name.is_empty() && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+    if !valid {
+        p.add(
+            field,
+            format!("`{name}` must be letters, digits, `_` or `-` (it names the stage's HDF5 group)"),
+        );
+    } else if earlier.contains(&name) || RESERVED_GROUPS.contains(&name) {
+        p.add(
+            field,
+            format!(
+                "`{name}` is taken (by an earlier stage, or a group of result.h5: {}); give each stage its own name",
+                RESERVED_GROUPS.join(", ")
+            ),
+        );
+    }
+}
+
+/// The groups of result.h5 that are not stages.
+const RESERVED_GROUPS: [&str; 4] = ["model", "structure_analysis", "formfinding", "equilibrium"];
+
+/// "no earlier stage `x`", with the nearest earlier name when one is close.
+fn unknown_stage(name: &str, earlier: &[&str]) -> String {
+    let near = earlier
+        .iter()
+        .copied()
+        .min_by_key(|e| strsim::levenshtein(name, e))
+        .filter(|e| strsim::levenshtein(name, e) <= 2);
+    let hint = near.map_or(String::new(), |n| format!("; did you mean `{n}`?"));
+    format!(
+        "no earlier stage is named `{name}` (a stage starts from, or uses, one before it: {}){hint}",
+        earlier.join(", ")
+    )
+}
+
 fn check_measure(m: &MeasureSpec, p: &mut Problems) {
     p.positive("formfinding.measure.strut_ea", m.strut_ea);
     if let Some(l0) = m.strut_rest_length {
@@ -597,7 +720,7 @@ fn check_cuts(field: &str, cuts: u32, p: &mut Problems) {
     }
 }
 
-fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option<&Model>, p: &mut Problems) {
+fn check_transient(name: &str, t: &TransientSpec, model: Option<&Model>, p: &mut Problems) {
     p.positive(&format!("{name}.dt"), t.dt);
     p.positive(&format!("{name}.duration"), t.duration);
     check_steps(
@@ -618,9 +741,6 @@ fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option
     check_cuts(&format!("{name}.max_cuts"), t.max_cuts, p);
     p.within(&format!("{name}.newmark_gamma"), t.newmark_gamma, 0.0, 1.0, "(0, 1)");
     p.within(&format!("{name}.newmark_beta"), t.newmark_beta, 0.0, 0.5 + 1e-12, "(0, 0.5]");
-    if t.damped && !has_eigen {
-        p.add(format!("{name}.damped"), "Rayleigh damping needs `eigen.rayleigh`");
-    }
     if let Some(l) = &t.load {
         p.positive(&format!("{name}.load.duration"), l.duration);
         if let Some(model) = model {
@@ -631,51 +751,74 @@ fn check_transient(name: &str, t: &TransientSpec, has_eigen: bool, model: Option
     }
 }
 
-fn check_static(s: &super::StaticSpec, gravity: bool, p: &mut Problems) {
+fn check_static(at: &str, s: &super::StaticSpec, gravity: bool, model: Option<&Model>, p: &mut Problems) {
     if s.steps == 0 {
-        p.add("static.steps", "is 0; must be ≥ 1");
+        p.add(format!("{at}.steps"), "is 0; must be ≥ 1");
     }
-    check_steps("static.steps", s.steps as f64, "is", p);
-    check_cuts("static.max_cuts", s.max_cuts, p);
+    check_steps(&format!("{at}.steps"), s.steps as f64, "is", p);
+    check_cuts(&format!("{at}.max_cuts"), s.max_cuts, p);
     if s.loads.is_empty() && !gravity {
-        p.add("static", "nothing to apply: give `loads` or `gravity`");
+        p.add(at, "nothing to apply: give `loads` or `gravity`");
     }
     if s.control.is_some() && s.loads.is_empty() {
-        p.add("static.control", "displacement control scales the `loads` pattern: give `loads`");
+        p.add(
+            format!("{at}.control"),
+            "displacement control scales the `loads` pattern: give `loads`",
+        );
     }
     if let Some(c) = &s.control {
         if !(c.displacement != 0.0 && c.displacement.is_finite()) {
             p.add(
-                "static.control.displacement",
+                format!("{at}.control.displacement"),
                 format!("is {}; must be a finite number ≠ 0", c.displacement),
             );
         }
     }
+    let Some(model) = model else { return };
+    for (k, l) in s.loads.iter().enumerate() {
+        if let Err(e) = model.node_set(&l.nodes, &l.groups) {
+            p.add(format!("{at}.loads[{k}]"), e.to_string());
+        }
+    }
+    if let Some(c) = &s.control {
+        match model.nodes.iter().find(|n| n.id == c.node) {
+            None => p.add(format!("{at}.control.node"), model.unknown_node(&c.node).to_string()),
+            Some(n) if n.support[c.axis.index()] => p.add(
+                format!("{at}.control.axis"),
+                format!(
+                    "node `{}` is supported in {}: control a free direction",
+                    n.id,
+                    crate::model::AXES[c.axis.index()]
+                ),
+            ),
+            Some(_) => {}
+        }
+    }
 }
 
-fn check_folding(f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
+fn check_folding(at: &str, f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
     if f.steps == 0 {
-        p.add("folding.steps", "is 0; must be ≥ 1");
+        p.add(format!("{at}.steps"), "is 0; must be ≥ 1");
     }
-    check_steps("folding.steps", f.steps as f64, "is", p);
-    check_cuts("folding.max_cuts", f.max_cuts, p);
+    check_steps(&format!("{at}.steps"), f.steps as f64, "is", p);
+    check_cuts(&format!("{at}.max_cuts"), f.max_cuts, p);
     let Some(model) = model else { return };
     if let Some(k) = f.eigen {
         let dof_count = 3 * model.node_count() - model.support_count();
         if k == 0 || k > dof_count {
             p.add(
-                "folding.eigen",
+                format!("{at}.eigen"),
                 format!("is {k}; must lie in 1..={dof_count} (the model's free DOF)"),
             );
         }
     }
     for (k, s) in f.prescribe.iter().enumerate() {
         if let Err(e) = model.group(&s.group) {
-            p.add(format!("folding.prescribe[{k}].group"), e.to_string());
+            p.add(format!("{at}.prescribe[{k}].group"), e.to_string());
         }
         if s.target == FoldTarget::ToBase {
             if let Err(e) = model.group("base") {
-                p.add(format!("folding.prescribe[{k}].to_base"), e.to_string());
+                p.add(format!("{at}.prescribe[{k}].to_base"), e.to_string());
             }
         }
     }
@@ -701,12 +844,6 @@ fn check_transient_loading(name: &str, t: &TransientSpec, supported: bool, model
     }
     check_actuation(name, &t.actuation, model, p);
     let Some(initial) = &t.initial else { return };
-    if name == "free_vibration" && initial.from == Some(StartFrom::Folded) {
-        p.add(
-            format!("{name}.initial.from"),
-            "folding runs after free vibration; use `equilibrium` or `previous`",
-        );
-    }
     for (what, entries) in [("displacement", &initial.displacement), ("velocity", &initial.velocity)] {
         for (k, e) in entries.iter().enumerate() {
             let field = format!("{name}.initial.{what}[{k}]");

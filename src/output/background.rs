@@ -174,14 +174,14 @@ fn work<R: Recorder>(mut recorder: R, inbox: Receiver<Command>, give_back: Sende
     let run = || -> RecordResult {
         for command in inbox {
             match command {
-                Command::Begin(stage, constraints) => recorder.begin_stage(stage, &constraints)?,
+                Command::Begin(stage, constraints) => recorder.begin_stage(&stage, &constraints)?,
                 Command::Frames(block) => {
                     for frame in &block {
                         recorder.frame(&frame.as_frame())?;
                     }
                     let _ = give_back.send(block);
                 }
-                Command::End(stage) => recorder.end_stage(stage)?,
+                Command::End(stage) => recorder.end_stage(&stage)?,
             }
         }
         Ok(())
@@ -207,10 +207,10 @@ impl<R: Recorder + Send + 'static> Recorder for Background<R> {
         self.direct()?.eigen(record)
     }
 
-    fn begin_stage(&mut self, stage: Stage, constraints: &Constraints) -> RecordResult {
+    fn begin_stage(&mut self, stage: &Stage, constraints: &Constraints) -> RecordResult {
         self.check()?;
         self.spawn()?;
-        self.send(Command::Begin(stage, constraints.clone()))
+        self.send(Command::Begin(stage.clone(), constraints.clone()))
     }
 
     fn frame(&mut self, frame: &Frame) -> RecordResult {
@@ -230,12 +230,12 @@ impl<R: Recorder + Send + 'static> Recorder for Background<R> {
         Ok(())
     }
 
-    fn end_stage(&mut self, stage: Stage) -> RecordResult {
+    fn end_stage(&mut self, stage: &Stage) -> RecordResult {
         if !matches!(self.state, State::Running { .. }) {
             return self.direct()?.end_stage(stage);
         }
         self.send_block()?;
-        self.send(Command::End(stage))
+        self.send(Command::End(stage.clone()))
     }
 
     /// Waits for the worker to write everything, then finishes on this thread.
@@ -388,7 +388,7 @@ mod tests {
             self.calls.lock().unwrap().push("model".into());
             Ok(())
         }
-        fn begin_stage(&mut self, stage: Stage, constraints: &Constraints) -> RecordResult {
+        fn begin_stage(&mut self, stage: &Stage, constraints: &Constraints) -> RecordResult {
             self.calls
                 .lock()
                 .unwrap()
@@ -406,7 +406,7 @@ mod tests {
                 .push(format!("frame {} {} {kind}", frame.step, frame.time));
             Ok(())
         }
-        fn end_stage(&mut self, stage: Stage) -> RecordResult {
+        fn end_stage(&mut self, stage: &Stage) -> RecordResult {
             self.calls.lock().unwrap().push(format!("end {}", stage.name()));
             Ok(())
         }
@@ -474,12 +474,14 @@ mod tests {
             rest_lengths: &[1.0; 12],
             masses: &[1.0; 6],
             mass_reading: "physical",
-            constraints: &[],
-            path_modes: 0,
-            actuated: &[],
+            stages: &[],
         })
         .unwrap();
-        bg.begin_stage(Stage::FreeVibration, &Constraints::new(&model, &[])).unwrap();
+        bg.begin_stage(
+            &Stage::new(crate::record::StageKind::Transient, "free_vibration"),
+            &Constraints::new(&model, &[]),
+        )
+        .unwrap();
         drop(bg);
         assert_eq!(crate::output::h5::tests::status(&path), "failed: recorder dropped before finish");
     }

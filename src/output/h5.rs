@@ -22,7 +22,7 @@ use super::chunk::ChunkEncoder;
 use crate::model::AXES;
 use crate::record::{
     ClearanceEvent, Constraints, EigenRecord, EventKind, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Rigidity,
-    RigidityRecord, Stage,
+    RigidityRecord, Stage, StageKind, StageLayout,
 };
 use hdf5::types::{FixedUnicode, VarLenUnicode};
 use hdf5::{Dataset, File, Group, H5Type, Location};
@@ -93,10 +93,13 @@ struct Open {
     file: File,
     node_ids: Vec<String>,
     member_ids: Vec<String>,
-    /// Free vibration, folding, deployment; created by `model`.
+    /// The stepped stages' groups, created by `model`.
     series: Vec<(Stage, Series)>,
     current: Option<usize>,
     swmr: bool,
+    /// Eigen stages still to record: their groups are created when they run, which SWMR
+    /// forbids, so SWMR waits for the last of them.
+    eigen_pending: usize,
 }
 
 impl Hdf5Recorder {
@@ -117,6 +120,7 @@ impl Hdf5Recorder {
             series: Vec::new(),
             current: None,
             swmr: false,
+            eigen_pending: 0,
         };
         open.set_status("running")?;
         Ok(Hdf5Recorder { open: Some(open) })
@@ -221,14 +225,15 @@ impl Recorder for Hdf5Recorder {
         )?;
 
         let chunk = (CHUNK_BYTES / (24 * model.node_count().max(1))).clamp(1, CHUNK_STEPS);
-        for stage in [Stage::Static, Stage::FreeVibration, Stage::Folding, Stage::Deployment] {
+        for layout in record.stages.iter().filter(|l| l.stage.kind.is_stepped()) {
             let ids = Ids {
                 nodes: &open.node_ids,
                 members: &open.member_ids,
             };
-            let series = Series::create(open.file.create_group(stage.name())?, stage, ids, record, chunk)?;
-            open.series.push((stage, series));
+            let series = Series::create(open.file.create_group(layout.stage.name())?, layout, ids, record, chunk)?;
+            open.series.push((layout.stage.clone(), series));
         }
+        open.eigen_pending = record.stages.iter().filter(|l| l.stage.kind == StageKind::Eigen).count();
         Ok(open.file.flush()?)
     }
 
@@ -284,7 +289,8 @@ impl Recorder for Hdf5Recorder {
 
     fn eigen(&mut self, record: &EigenRecord) -> RecordResult {
         let open = self.open()?;
-        let mut g = Dims::new(open.static_group("eigen")?);
+        let mut g = Dims::new(open.static_group(record.stage.name())?);
+        open.eigen_pending = open.eigen_pending.saturating_sub(1);
         let modes: Vec<i64> = (1..=record.omega2.len() as i64).collect();
         g.coord("mode", &modes, "1", "mode number (1-based, ascending frequency)")?;
         g.labels("node", &open.node_ids, "node id")?;
@@ -314,12 +320,12 @@ impl Recorder for Hdf5Recorder {
         Ok(open.file.flush()?)
     }
 
-    fn begin_stage(&mut self, stage: Stage, constraints: &Constraints) -> RecordResult {
+    fn begin_stage(&mut self, stage: &Stage, constraints: &Constraints) -> RecordResult {
         let open = self.open()?;
         let i = open
             .series
             .iter()
-            .position(|(s, _)| *s == stage)
+            .position(|(s, _)| s == stage)
             .ok_or_else(|| format!("HDF5: {} is not a time-stepping stage (or model() was not recorded)", stage.name()))?;
         if open.series[i].1.constraints != *constraints {
             return Err(format!(
@@ -328,9 +334,10 @@ impl Recorder for Hdf5Recorder {
             )
             .into());
         }
-        // The static stage is short and comes before the eigen group is written (groups
-        // cannot be created once SWMR has started): readers follow the long stages only.
-        if !open.swmr && stage != Stage::Static {
+        // Groups cannot be created once SWMR has started: it starts at the first dynamic
+        // or folding stage after the last eigen stage (static stages are short; readers
+        // follow the long stages).
+        if !open.swmr && open.eigen_pending == 0 && stage.kind != StageKind::Static {
             open.file.start_swmr()?;
             open.swmr = true;
         }
@@ -346,7 +353,7 @@ impl Recorder for Hdf5Recorder {
         Ok(())
     }
 
-    fn end_stage(&mut self, _stage: Stage) -> RecordResult {
+    fn end_stage(&mut self, _stage: &Stage) -> RecordResult {
         self.open()?.close_stage()
     }
 
@@ -440,10 +447,10 @@ impl Series {
     /// `record`) has the coordinate `support` (labels `<node>.<axis>`) and the auxiliary
     /// coordinates `support_node`, `support_axis` and `support_kind` (`support` or
     /// `prescribed`).
-    fn create(group: Group, stage: Stage, ids: Ids, record: &ModelRecord, chunk: usize) -> Result<Self, Error> {
+    fn create(group: Group, layout: &StageLayout, ids: Ids, record: &ModelRecord, chunk: usize) -> Result<Self, Error> {
         let (node_ids, member_ids) = (ids.nodes, ids.members);
-        let constraints = record.constraints(stage);
-        let folding = stage.is_static();
+        let constraints = layout.constraints.clone();
+        let folding = layout.stage.is_static();
         let mut g = Dims::new(group);
         let (units, long_name) = if folding {
             ("1", "static step")
@@ -490,8 +497,8 @@ impl Series {
         )?;
         let mut columns = vec![time];
         if folding {
-            let what = match stage {
-                Stage::Folding => "applied fraction of the prescribed displacement",
+            let what = match layout.stage.kind {
+                StageKind::Folding => "applied fraction of the prescribed displacement",
                 _ => "load factor: applied fraction of the total load (under displacement control: the factor on the `loads` pattern)",
             };
             columns.push(g.streamed("fraction", &[], chunk, "1", what)?);
@@ -500,7 +507,7 @@ impl Series {
         if !folding {
             columns.push(g.streamed("velocity", &["node", "xyz"], chunk, "m s-1", "node velocity")?);
         }
-        let actuated = record.actuated.contains(&stage);
+        let actuated = layout.actuated;
         columns.extend(member_and_energy_columns(&g, actuated, chunk)?);
         for (name, dims, long_name) in [
             (
@@ -533,7 +540,7 @@ impl Series {
                 (false, false) => {}
             }
         }
-        let modes = if stage == Stage::Folding { record.path_modes } else { 0 };
+        let modes = layout.path_modes;
         if modes > 0 {
             let numbers: Vec<i64> = (1..=modes as i64).collect();
             g.coord("mode", &numbers, "1", "mode number, 1 = lowest")?;
@@ -1096,14 +1103,29 @@ pub(super) mod tests {
         let x0 = model.positions();
         // Folding prescribes z of the last node besides the supports.
         let folding = Constraints::new(model, &[(n - 1, 2)]);
+        let layout = |kind, name| StageLayout::plain(model, Stage::new(kind, name));
+        let stages = [
+            StageLayout {
+                placeholder: true,
+                ..layout(StageKind::Static, "static")
+            },
+            layout(StageKind::Eigen, "eigen"),
+            layout(StageKind::Transient, "free_vibration"),
+            StageLayout {
+                constraints: folding.clone(),
+                ..layout(StageKind::Folding, "folding")
+            },
+            StageLayout {
+                actuated: true,
+                ..layout(StageKind::Transient, "deployment")
+            },
+        ];
         rec.model(&ModelRecord {
             model,
             rest_lengths: &vec![1.0; m],
             masses: &vec![2.0; n],
             mass_reading: "paper",
-            constraints: &[(Stage::Folding, folding.clone())],
-            path_modes: 0,
-            actuated: &[Stage::Deployment],
+            stages: &stages,
         })?;
         let forces: Vec<f64> = model
             .members
@@ -1111,7 +1133,7 @@ pub(super) mod tests {
             .map(|mb| if mb.kind == crate::model::MemberKind::Strut { -10.0 } else { 5.0 })
             .collect();
         rec.formfinding(&FormFindRecord {
-            stage: Stage::FormFinding,
+            stage: &Stage::of(StageKind::FormFinding),
             residuals: &[1.0, 1e-3, 1e-9],
             positions: &x0,
             forces: &forces,
@@ -1122,6 +1144,7 @@ pub(super) mod tests {
         rec.rigidity(&RigidityRecord { analysis: Ok(&analysis) })?;
         let shapes = vec![vec![Vector3::new(0.0, 0.0, 1.0); n]; 4];
         rec.eigen(&EigenRecord {
+            stage: &stages[1].stage,
             omega2: &[1.0, 4.0, 9.0, 16.0],
             mode_shapes: &shapes,
             rayleigh_alpha: 0.1,
@@ -1129,18 +1152,20 @@ pub(super) mod tests {
             damping_modes: &[1, 2],
             damping_ratio: &[0.02, 0.02],
         })?;
-        for stage in [Stage::FreeVibration, Stage::Folding, Stage::Deployment] {
-            let constraints = if stage == Stage::Folding {
-                folding.clone()
-            } else {
-                Constraints::new(model, &[])
-            };
-            rec.begin_stage(stage, &constraints)?;
+        for StageLayout {
+            stage,
+            constraints,
+            actuated,
+            ..
+        } in &stages[2..]
+        {
+            let is_folding = stage.kind == StageKind::Folding;
+            rec.begin_stage(stage, constraints)?;
             for step in (0..=steps).filter(|s| s % every == 0 || *s == steps) {
                 let s = step as f64;
                 let positions: Vec<_> = x0.iter().map(|p| p + Vector3::repeat(1e-3 * s)).collect();
                 let velocities = vec![Vector3::repeat(s); n];
-                let time = if stage == Stage::Folding { s / steps as f64 } else { 0.01 * s };
+                let time = if is_folding { s / steps as f64 } else { 0.01 * s };
                 let energy = Energy {
                     kinetic: s,
                     strain: 2.0 * s,
@@ -1150,7 +1175,7 @@ pub(super) mod tests {
                 };
                 let rest = vec![1.0 - 0.001 * s; m];
                 let lengths = vec![1.0 + s; m];
-                let velocities = (stage != Stage::Folding).then_some(velocities.as_slice());
+                let velocities = (!is_folding).then_some(velocities.as_slice());
                 // Struts 0 and 1 approach by 0.01 m a step; a touch is reported at the last.
                 let touch = ClearanceEvent {
                     kind: EventKind::Touch,
@@ -1173,7 +1198,7 @@ pub(super) mod tests {
                     velocities,
                     forces: &forces,
                     lengths: &lengths,
-                    rest_lengths: (stage == Stage::Deployment).then_some(rest.as_slice()),
+                    rest_lengths: actuated.then_some(rest.as_slice()),
                     energy,
                     applied: &vec![Vector3::new(0.0, 0.0, -s); n],
                     reactions: &(0..constraints.len()).map(|k| k as f64 + s).collect::<Vec<_>>(),
@@ -1404,12 +1429,11 @@ pub(super) mod tests {
             rest_lengths: &[1.0; 12],
             masses: &[1.0; 6],
             mass_reading: "physical",
-            constraints: &[],
-            path_modes: 0,
-            actuated: &[],
+            stages: &[StageLayout::plain(&model, Stage::new(StageKind::Transient, "free_vibration"))],
         })
         .unwrap();
-        rec.begin_stage(Stage::FreeVibration, &Constraints::new(&model, &[])).unwrap();
+        rec.begin_stage(&Stage::new(StageKind::Transient, "free_vibration"), &Constraints::new(&model, &[]))
+            .unwrap();
         drop(rec);
         assert_eq!(status(&path), "failed: recorder dropped before finish");
     }

@@ -506,7 +506,7 @@ impl McapRecorder {
 
     /// `/tsim/members`: the message head (stage, step) encoded as `msg::MemberForces`
     /// encodes it, then the member records with this step's forces patched in.
-    fn log_members(&mut self, stage: Stage, step: usize, ns: u64, forces: &[f64]) -> Result<(), Error> {
+    fn log_members(&mut self, stage: &Stage, step: usize, ns: u64, forces: &[f64]) -> Result<(), Error> {
         self.buf.clear();
         let head = msg::MemberForces {
             stage: stage.name().into(),
@@ -518,7 +518,7 @@ impl McapRecorder {
         self.write_buf(self.channels.members, ns)
     }
 
-    fn log_stage(&mut self, stage: Stage, t: f64) -> Result<(), Error> {
+    fn log_stage(&mut self, stage: &Stage, t: f64) -> Result<(), Error> {
         let ns = self.clock.stage_stamp(t);
         self.log(self.channels.stage, ns, &msg::StageStart { name: stage.name().into() })
     }
@@ -526,7 +526,7 @@ impl McapRecorder {
     /// Scene and member forces of one state, and its energy when there is one.
     fn log_state(
         &mut self,
-        stage: Stage,
+        stage: &Stage,
         step: usize,
         ns: u64,
         positions: &[Vector3<f64>],
@@ -556,7 +556,7 @@ impl McapRecorder {
     /// `/tsim/scene` into `self.buf`: the `tensegrity` entity's head, the node records
     /// with this step's positions, its lines, then its legend (see [`NodeRecords`] and
     /// [`encode_lines`]).
-    fn encode_scene(&mut self, stage: Stage, step: usize, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) {
+    fn encode_scene(&mut self, stage: &Stage, step: usize, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) {
         let (head, tail) = self.scene(stage, step, ns, positions, forces);
         self.nodes.set_positions(positions);
         self.lines.clear();
@@ -577,7 +577,7 @@ impl McapRecorder {
     /// full red, compression grey-blue to full blue, in [`LEVELS`] shades; slack members (|N| at most [`SLACK_FRACTION`] of the largest,
     /// or a cable in compression) grey. One `LINE_LIST` per (kind, colour) present: half the
     /// size of per-vertex colours.
-    fn scene(&mut self, stage: Stage, step: usize, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) -> (SceneEntity, SceneEntity) {
+    fn scene(&mut self, stage: &Stage, step: usize, ns: u64, positions: &[Vector3<f64>], forces: &[f64]) -> (SceneEntity, SceneEntity) {
         let (mut tension, mut compression) = (0.0_f64, 0.0_f64);
         for &f in forces {
             tension = tension.max(f);
@@ -657,7 +657,7 @@ impl McapRecorder {
     }
 
     fn record_frame(&mut self, frame: &Frame) -> Result<(), Error> {
-        let stage = self.stage.ok_or("MCAP: frame outside a time-stepping stage")?;
+        let stage = self.stage.clone().ok_or("MCAP: frame outside a time-stepping stage")?;
         let t = self.clock.frame_time(frame);
         let nearest = frame.clearance.and_then(|c| c.nearest);
         // 1e-9: a time step that divides the interval exactly is not lost to round-off.
@@ -675,11 +675,11 @@ impl McapRecorder {
         self.logged_at = Some(frame.time);
         let ns = self.clock.step_stamp(t);
         self.nearest = nearest;
-        self.log_state(stage, frame.step, ns, frame.positions, frame.forces, Some(frame.energy))
+        self.log_state(&stage, frame.step, ns, frame.positions, frame.forces, Some(frame.energy))
     }
 
     /// Logs the stage's last frame if [`Self::record_frame`] held it back.
-    fn log_held(&mut self, stage: Stage) -> Result<(), Error> {
+    fn log_held(&mut self, stage: &Stage) -> Result<(), Error> {
         self.logged_at = None;
         if !std::mem::take(&mut self.holding) {
             return Ok(());
@@ -843,14 +843,14 @@ impl Recorder for McapRecorder {
         self.log_state(record.stage, 0, ns, record.positions, record.forces, None)
     }
 
-    fn eigen(&mut self, _record: &crate::record::EigenRecord) -> RecordResult {
+    fn eigen(&mut self, record: &crate::record::EigenRecord) -> RecordResult {
         let t = self.clock.static_step();
-        self.log_stage(Stage::Eigen, t)
+        self.log_stage(record.stage, t)
     }
 
-    fn begin_stage(&mut self, stage: Stage, _constraints: &crate::record::Constraints) -> RecordResult {
+    fn begin_stage(&mut self, stage: &Stage, _constraints: &crate::record::Constraints) -> RecordResult {
         self.clock.begin(stage.is_static());
-        self.stage = Some(stage);
+        self.stage = Some(stage.clone());
         self.log_stage(stage, self.clock.origin)
     }
 
@@ -858,7 +858,7 @@ impl Recorder for McapRecorder {
         self.record_frame(frame)
     }
 
-    fn end_stage(&mut self, stage: Stage) -> RecordResult {
+    fn end_stage(&mut self, stage: &Stage) -> RecordResult {
         self.log_held(stage)?;
         self.clock.end();
         self.stage = None;
@@ -866,8 +866,8 @@ impl Recorder for McapRecorder {
     }
 
     fn finish(&mut self, outcome: &Outcome) -> RecordResult {
-        if let Some(stage) = self.stage {
-            self.end_stage(stage)?;
+        if let Some(stage) = self.stage.clone() {
+            self.end_stage(&stage)?;
         }
         let mut writer = self.writer.take().ok_or("MCAP recorder already finished")?;
         let metadata = BTreeMap::from([("status".to_string(), outcome.to_string())]);
@@ -1034,16 +1034,20 @@ mod tests {
             rest_lengths: &vec![1.0; members],
             masses: &vec![1.0; model.node_count()],
             mass_reading: "physical",
-            constraints: &[],
-            path_modes: 0,
-            actuated: &[],
+            stages: &[],
         })
         .unwrap();
         rec
     }
 
     fn decoded_scene(rec: &mut McapRecorder, positions: &[Vector3<f64>], forces: &[f64]) -> SceneEntity {
-        rec.encode_scene(Stage::Deployment, 7, 1_500_000_000, positions, forces);
+        rec.encode_scene(
+            &Stage::new(crate::record::StageKind::Transient, "deployment"),
+            7,
+            1_500_000_000,
+            positions,
+            forces,
+        );
         let mut update = <SceneUpdate as foxglove::Decode>::decode(rec.buf.as_slice()).unwrap();
         assert_eq!(update.entities.len(), 1);
         update.entities.remove(0)

@@ -4,7 +4,7 @@
 
 use super::{
     ClearanceEvent, Constraints, EigenRecord, FormFindRecord, Frame, FrameClearance, ModelRecord, Nearest, Outcome, RecordResult, Recorder,
-    RigidityRecord, Stage,
+    RigidityRecord, Stage, StageKind,
 };
 
 /// Most events listed in the summary (all are counted, and all are in `result.h5`): a long
@@ -65,7 +65,7 @@ impl<'r> ClearanceLog<'r> {
     pub fn new(inner: &'r mut dyn Recorder) -> Self {
         ClearanceLog {
             inner,
-            stage: Stage::FormFinding,
+            stage: Stage::of(StageKind::FormFinding),
             member_ids: Vec::new(),
             tracked: false,
             nearest: None,
@@ -74,29 +74,29 @@ impl<'r> ClearanceLog<'r> {
         }
     }
 
-    fn note(&mut self, stage: Stage, step: usize, time: f64, clearance: Option<FrameClearance>) {
+    fn note(&mut self, stage: &Stage, step: usize, time: f64, clearance: Option<FrameClearance>) {
         let Some(c) = clearance else { return };
         self.tracked = true;
         if let Some(n) = c.nearest {
-            if self.nearest.is_none_or(|(.., m)| n.clearance < m.clearance) {
-                self.nearest = Some((stage, step, time, n));
+            if self.nearest.as_ref().is_none_or(|(.., m)| n.clearance < m.clearance) {
+                self.nearest = Some((stage.clone(), step, time, n));
             }
         }
         self.event_count += c.events.len();
         let room = SUMMARY_EVENTS - self.events.len();
-        self.events.extend(c.events.iter().take(room).map(|e| (stage, *e)));
+        self.events.extend(c.events.iter().take(room).map(|e| (stage.clone(), *e)));
     }
 
     /// The record so far; `None` when no record carried clearance.
     pub fn summary(&self) -> Option<ClearanceSummary> {
         let ids = |m: [usize; 2]| m.map(|k| self.member_ids.get(k).cloned().unwrap_or_else(|| k.to_string()));
         self.tracked.then(|| ClearanceSummary {
-            nearest: self.nearest.map(|(stage, step, time, n)| NearestSummary {
+            nearest: self.nearest.as_ref().map(|(stage, step, time, n)| NearestSummary {
                 clearance: n.clearance,
                 members: ids(n.members),
                 stage: stage.name().into(),
-                step,
-                time,
+                step: *step,
+                time: *time,
             }),
             events: self
                 .events
@@ -130,15 +130,16 @@ impl Recorder for ClearanceLog<'_> {
     fn eigen(&mut self, record: &EigenRecord) -> RecordResult {
         self.inner.eigen(record)
     }
-    fn begin_stage(&mut self, stage: Stage, constraints: &Constraints) -> RecordResult {
-        self.stage = stage;
+    fn begin_stage(&mut self, stage: &Stage, constraints: &Constraints) -> RecordResult {
+        self.stage = stage.clone();
         self.inner.begin_stage(stage, constraints)
     }
     fn frame(&mut self, frame: &Frame) -> RecordResult {
-        self.note(self.stage, frame.step, frame.time, frame.clearance);
+        let stage = self.stage.clone();
+        self.note(&stage, frame.step, frame.time, frame.clearance);
         self.inner.frame(frame)
     }
-    fn end_stage(&mut self, stage: Stage) -> RecordResult {
+    fn end_stage(&mut self, stage: &Stage) -> RecordResult {
         self.inner.end_stage(stage)
     }
     fn finish(&mut self, outcome: &Outcome) -> RecordResult {

@@ -16,13 +16,13 @@ impl Recorder for Recorders {
     fn eigen(&mut self, r: &EigenRecord) -> RecordResult {
         self.0.iter_mut().try_for_each(|x| x.eigen(r))
     }
-    fn begin_stage(&mut self, s: Stage, c: &Constraints) -> RecordResult {
+    fn begin_stage(&mut self, s: &Stage, c: &Constraints) -> RecordResult {
         self.0.iter_mut().try_for_each(|x| x.begin_stage(s, c))
     }
     fn frame(&mut self, f: &Frame) -> RecordResult {
         self.0.iter_mut().try_for_each(|x| x.frame(f))
     }
-    fn end_stage(&mut self, s: Stage) -> RecordResult {
+    fn end_stage(&mut self, s: &Stage) -> RecordResult {
         self.0.iter_mut().try_for_each(|x| x.end_stage(s))
     }
     /// Finishes every recorder even if one fails, so each file gets its final status.

@@ -16,38 +16,71 @@ pub use fanout::Recorders;
 use crate::model::{Model, AXES};
 use nalgebra::Vector3;
 
-/// The stages as outputs name them.
+/// What a stage does; several stages of a case may be of one kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Stage {
+pub enum StageKind {
     FormFinding,
     /// The equilibrium of a model given with rest lengths (no form-finding).
     Equilibrium,
-    /// Gravity and static loads applied after substitution.
+    /// Gravity and static loads applied in load steps.
     Static,
     Eigen,
-    FreeVibration,
+    /// Newmark time stepping (the paper's free vibration and deployment).
+    Transient,
+    /// Prescribed displacement in static steps.
     Folding,
-    Deployment,
 }
 
-impl Stage {
-    /// Group / topic name: `formfinding`, `equilibrium`, `static`, `eigen`,
-    /// `free_vibration`, `folding`, `deployment`.
+impl StageKind {
+    /// The kind as the config's `stages` entries name it.
     pub fn name(self) -> &'static str {
         match self {
-            Stage::FormFinding => "formfinding",
-            Stage::Equilibrium => "equilibrium",
-            Stage::Static => "static",
-            Stage::Eigen => "eigen",
-            Stage::FreeVibration => "free_vibration",
-            Stage::Folding => "folding",
-            Stage::Deployment => "deployment",
+            StageKind::FormFinding => "formfinding",
+            StageKind::Equilibrium => "equilibrium",
+            StageKind::Static => "static",
+            StageKind::Eigen => "eigen",
+            StageKind::Transient => "transient",
+            StageKind::Folding => "folding",
         }
     }
 
     /// A stage of static steps (no velocities; `time` is the applied fraction).
     pub fn is_static(self) -> bool {
-        matches!(self, Stage::Folding | Stage::Static)
+        matches!(self, StageKind::Folding | StageKind::Static)
+    }
+
+    /// A stage that records a series of steps (a group with a `time` dimension).
+    pub fn is_stepped(self) -> bool {
+        matches!(self, StageKind::Static | StageKind::Transient | StageKind::Folding)
+    }
+}
+
+/// One stage of a case as outputs name it: its kind and its name, unique in the case
+/// (the HDF5 group, the replay's stage topic, the summary key). The paper's sequence
+/// names its stages `formfinding` (or `equilibrium`), `static`, `eigen`,
+/// `free_vibration`, `folding`, `deployment`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Stage {
+    pub kind: StageKind,
+    pub name: std::sync::Arc<str>,
+}
+
+impl Stage {
+    pub fn new(kind: StageKind, name: &str) -> Self {
+        Stage { kind, name: name.into() }
+    }
+
+    /// A stage named after its kind.
+    pub fn of(kind: StageKind) -> Self {
+        Stage::new(kind, kind.name())
+    }
+
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    pub fn is_static(&self) -> bool {
+        self.kind.is_static()
     }
 }
 
@@ -117,7 +150,7 @@ pub struct Frame<'a> {
     pub forces: &'a [f64],
     pub lengths: &'a [f64],
     /// The members' rest lengths at this step [m], in a stage that changes them in time
-    /// (declared in [`ModelRecord::actuated`]); `None` elsewhere.
+    /// (declared in [`StageLayout::actuated`]); `None` elsewhere.
     pub rest_lengths: Option<&'a [f64]>,
     pub energy: Energy,
     /// External load applied on every node [N]: dead loads, weight, time-varying loads
@@ -164,32 +197,46 @@ pub struct ModelRecord<'a> {
     pub masses: &'a [f64],
     /// The config's `masses` reading they follow: `physical`, or `paper` (1000× lighter).
     pub mass_reading: &'a str,
-    /// The constrained directions of the time-stepping stages that constrain more than
-    /// the supports (folding); any other stage constrains the supports only. Known before
-    /// the stages run, since file layouts are fixed once streaming starts.
-    pub constraints: &'a [(Stage, Constraints)],
-    /// How many of the lowest modes folding records at every step (0: none).
-    pub path_modes: usize,
-    /// The stages that change rest lengths in time: their frames carry
-    /// [`Frame::rest_lengths`], and their outputs record them and the actuators' work.
-    pub actuated: &'a [Stage],
+    /// Every stage the case runs after form-finding, in order, with what its outputs
+    /// need to know before streaming starts (file layouts are fixed then).
+    pub stages: &'a [StageLayout],
 }
 
-impl ModelRecord<'_> {
-    /// The constrained directions of `stage`.
-    pub fn constraints(&self, stage: Stage) -> Constraints {
-        self.constraints
-            .iter()
-            .find(|(s, _)| *s == stage)
-            .map_or_else(|| Constraints::new(self.model, &[]), |(_, c)| c.clone())
+/// What a stage's outputs need before any stage runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StageLayout {
+    pub stage: Stage,
+    /// The directions the stage holds fixed: the supports, and for folding the
+    /// prescribed directions.
+    pub constraints: Constraints,
+    /// The stage changes rest lengths in time: its frames carry [`Frame::rest_lengths`],
+    /// and its outputs record them and the actuators' work.
+    pub actuated: bool,
+    /// How many of the lowest modes the stage records at every step (0: none).
+    pub path_modes: usize,
+    /// Declared for the file layout only (the paper's sequence keeps a group for each of
+    /// its stepped stages, run or not); it never begins.
+    pub placeholder: bool,
+}
+
+impl StageLayout {
+    /// A stage that holds the supports only, changes no rest length and records no modes.
+    pub fn plain(model: &Model, stage: Stage) -> Self {
+        StageLayout {
+            stage,
+            constraints: Constraints::new(model, &[]),
+            actuated: false,
+            path_modes: 0,
+            placeholder: false,
+        }
     }
 }
 
 /// Results of form-finding, or of the equilibrium of a model given with rest lengths.
 #[derive(Clone, Copy, Debug)]
 pub struct FormFindRecord<'a> {
-    /// `FormFinding` or `Equilibrium`: the group it is written to.
-    pub stage: Stage,
+    /// `formfinding` or `equilibrium`: the group it is written to.
+    pub stage: &'a Stage,
     pub residuals: &'a [f64],
     pub positions: &'a [Vector3<f64>],
     pub forces: &'a [f64],
@@ -200,6 +247,8 @@ pub struct FormFindRecord<'a> {
 /// Results of the eigen analysis.
 #[derive(Clone, Copy, Debug)]
 pub struct EigenRecord<'a> {
+    /// The eigen stage: its group.
+    pub stage: &'a Stage,
     /// ω² ascending [rad²/s²].
     pub omega2: &'a [f64],
     /// Mass-normalised mode shapes, `mode_shapes[mode][node]` [m·kg^-1/2].
@@ -263,13 +312,13 @@ pub trait Recorder {
         Ok(())
     }
     /// A time-stepping stage begins; its frames' reactions are at `constraints`.
-    fn begin_stage(&mut self, _stage: Stage, _constraints: &Constraints) -> RecordResult {
+    fn begin_stage(&mut self, _stage: &Stage, _constraints: &Constraints) -> RecordResult {
         Ok(())
     }
     fn frame(&mut self, _frame: &Frame) -> RecordResult {
         Ok(())
     }
-    fn end_stage(&mut self, _stage: Stage) -> RecordResult {
+    fn end_stage(&mut self, _stage: &Stage) -> RecordResult {
         Ok(())
     }
     /// The case's outcome; a recorder writes it as its `status`.

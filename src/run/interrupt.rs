@@ -42,7 +42,7 @@ impl Check {
 }
 
 impl Recorder for Check {
-    fn begin_stage(&mut self, _stage: Stage, _constraints: &crate::record::Constraints) -> RecordResult {
+    fn begin_stage(&mut self, _stage: &Stage, _constraints: &crate::record::Constraints) -> RecordResult {
         Self::now()
     }
     fn frame(&mut self, _frame: &Frame) -> RecordResult {

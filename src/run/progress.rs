@@ -33,7 +33,7 @@ impl Progress {
         let bar = self.multi.insert_before(&self.overall, ProgressBar::new_spinner());
         bar.set_style(ProgressStyle::with_template("  {spinner} {prefix}: {msg}").unwrap_or_else(|_| ProgressStyle::default_spinner()));
         bar.set_prefix(id.to_string());
-        CaseBar { bar, stage: "" }
+        CaseBar { bar, stage: "".into() }
     }
 
     /// Records a finished case: on the bars, or as one log line when they are hidden.
@@ -59,13 +59,13 @@ impl Progress {
 /// One case's bar; as a [`Recorder`] it learns the stage and time from the pipeline.
 pub struct CaseBar {
     bar: ProgressBar,
-    stage: &'static str,
+    stage: std::sync::Arc<str>,
 }
 
 impl Recorder for CaseBar {
-    fn begin_stage(&mut self, stage: Stage, _constraints: &crate::record::Constraints) -> RecordResult {
-        self.stage = stage.name();
-        self.bar.set_message(self.stage);
+    fn begin_stage(&mut self, stage: &Stage, _constraints: &crate::record::Constraints) -> RecordResult {
+        self.stage = stage.name.clone();
+        self.bar.set_message(self.stage.to_string());
         Ok(())
     }
     fn frame(&mut self, frame: &Frame) -> RecordResult {

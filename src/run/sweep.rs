@@ -482,9 +482,11 @@ pub const COLUMNS: [(&str, &str); 36] = [
 pub fn cells(o: &CaseOutcome) -> Vec<Cell> {
     let s = o.summary.as_ref();
     let f = |v: Option<f64>| Cell::Number(v.unwrap_or(f64::NAN));
-    let eig = s.and_then(|s| s.eigen.as_ref());
-    let free = s.and_then(|s| s.free_vibration.as_ref());
-    let dep = s.and_then(|s| s.deployment.as_ref());
+    // The paper's stages, by their names (a `stages` list fills the columns of the
+    // stages it names so).
+    let eig = s.and_then(|s| s.eigen("eigen"));
+    let free = s.and_then(|s| s.transient("free_vibration")).map(|t| &t.transient);
+    let dep = s.and_then(|s| s.transient("deployment"));
     let analysis = s.map(|s| &s.structure_analysis).filter(|a| a.skipped.is_none());
     let clearance = s.and_then(|s| s.clearance.as_ref());
     // A model given with rest lengths solves its equilibrium in place of form-finding.
@@ -517,15 +519,15 @@ pub fn cells(o: &CaseOutcome) -> Vec<Cell> {
         f(free.map(|t| t.max_kinetic)),
         f(free.map(|t| t.max_tension)),
         f(free.map(|t| t.max_compression)),
-        f(s.and_then(|s| s.folding.as_ref()).map(|f| f.height_ratio)),
+        f(s.and_then(|s| s.folding("folding")).map(|f| f.height_ratio)),
         f(dep.map(|d| d.transient.max_kinetic)),
         f(dep.map(|d| d.transient.final_kinetic / d.transient.max_kinetic)),
         f(dep.map(|d| d.transient.max_tension)),
         f(dep.map(|d| d.transient.max_compression)),
         f(dep.map(|d| d.transient.max_strut_compression)),
         f(dep.map(|d| d.transient.max_cable_stretch)),
-        f(dep.map(|d| d.shape_error)),
-        f(dep.map(|d| d.mirror_shape_error)),
+        f(dep.and_then(|d| d.shape_error)),
+        f(dep.and_then(|d| d.mirror_shape_error)),
         f(dep.and_then(|d| d.transient.settle_time)),
         f(clearance.and_then(|c| c.nearest.as_ref()).map(|n| n.clearance)),
         f(clearance.map(|c| c.event_count as f64)),

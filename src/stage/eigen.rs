@@ -13,7 +13,7 @@ use super::{record_error, Analysis, Settings};
 use crate::dynamics::Rayleigh;
 use crate::error::{Error, Result};
 use crate::model::Model;
-use crate::record::{EigenRecord, Recorder};
+use crate::record::{EigenRecord, Recorder, Stage};
 use crate::solve::{krylov_dimension, partial_eigen, symmetric_eigen, Diagonal, Shift, TangentSink};
 use crate::structure::{State, Structure};
 use crate::tsm::{tangent_sparsity, Assembly, DofMap};
@@ -35,9 +35,10 @@ pub enum DampingFrom {
 }
 
 /// Eigen analysis at the state it is given, and the Rayleigh damping it implies.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Eigen {
     pub damping: DampingFrom,
+    pub stage: Stage,
     pub solver: ModeSolver,
 }
 
@@ -143,6 +144,7 @@ impl Analysis for Eigen {
         };
         recorder
             .eigen(&EigenRecord {
+                stage: &self.stage,
                 omega2: &m.omega2,
                 mode_shapes: &m.node_shapes(model, &dofs),
                 rayleigh_alpha: rayleigh.alpha,
@@ -150,7 +152,7 @@ impl Analysis for Eigen {
                 damping_modes: &chosen,
                 damping_ratio: &ratios,
             })
-            .map_err(record_error("eigen"))?;
+            .map_err(record_error(self.stage.name()))?;
         let summary = EigenSummary {
             frequency_hz: m.frequency_hz(),
             omega2: m.omega2,
@@ -183,7 +185,7 @@ impl Modes {
         let count = self.omega2.len();
         if let Some(&k) = modes.iter().find(|&&k| k > count) {
             return Err(Error::Stage {
-                stage: "eigen",
+                stage: "eigen".into(),
                 reason: format!(
                     "`eigen.rayleigh.modes` asks for mode {k}, but the partial eigen solver computed {count}; raise `eigen.modes` to at least {k}"
                 ),
@@ -241,7 +243,7 @@ pub fn tangent_matrix(asm: &Assembly) -> Mat<f64> {
 pub fn modes(asm: &Assembly, mass: &[f64], solver: &ModeSolver) -> Result<Modes> {
     if let Some(i) = mass.iter().position(|&m| !(m > 0.0)) {
         return Err(Error::Stage {
-            stage: "eigen",
+            stage: "eigen".into(),
             reason: format!("{} has no mass; give its members a density", asm.dofs.label(asm.model, i)),
         });
     }
@@ -257,7 +259,7 @@ pub fn modes(asm: &Assembly, mass: &[f64], solver: &ModeSolver) -> Result<Modes>
         shift,
     )
     .map_err(|e| Error::Stage {
-        stage: "eigen",
+        stage: "eigen".into(),
         reason: format!("partial eigen solver: {e}"),
     })?;
     Ok(Modes {
@@ -272,7 +274,7 @@ fn dense_modes(k: &Mat<f64>, mass: &[f64]) -> Result<Modes> {
     let n = mass.len();
     let c = Mat::from_fn(n, n, |i, j| k[(i, j)] * inv_sqrt[i] * inv_sqrt[j]);
     let (omega2, y) = symmetric_eigen(c.as_ref()).map_err(|e| Error::Stage {
-        stage: "eigen",
+        stage: "eigen".into(),
         reason: format!("eigen solver failed: {e:?}"),
     })?;
     let shapes = Mat::from_fn(n, n, |i, j| y[(i, j)] * inv_sqrt[i]);
@@ -295,13 +297,13 @@ pub fn lowest_stiffness(asm: &Assembly) -> Result<(f64, String)> {
             Shift::Lowest,
         )
         .map_err(|e| Error::Stage {
-            stage: "stability",
+            stage: "stability".into(),
             reason: format!("partial eigen solver: {e}"),
         })?;
         (pairs.values[0], largest(pairs.vectors.as_ref()))
     } else {
         let (values, vectors) = symmetric_eigen(tangent_matrix(asm).as_ref()).map_err(|e| Error::Stage {
-            stage: "stability",
+            stage: "stability".into(),
             reason: format!("eigen solver failed: {e:?}"),
         })?;
         (values[0], largest(vectors.as_ref()))

@@ -37,6 +37,7 @@ pub struct Prescription {
 /// The folding stage.
 #[derive(Clone, Debug)]
 pub struct Folding {
+    pub stage: Stage,
     pub steps: usize,
     /// A failed step is halved up to this many times.
     pub max_cuts: u32,
@@ -257,7 +258,8 @@ impl Analysis for Folding {
         let strain0 = fold.problem.asm.strain_energy();
         let mut frames = FrameBuilder::new(structure, &dofs);
         let applied = structure.constant_load();
-        frames.begin(recorder, Stage::Folding).map_err(record_error("folding"))?;
+        let name = self.stage.name();
+        frames.begin(recorder, &self.stage).map_err(record_error(name))?;
         let mut summary = FoldSummary {
             steps: self.steps,
             ..Default::default()
@@ -277,14 +279,14 @@ impl Analysis for Folding {
             };
             frames
                 .record(recorder, &fold.problem.asm, step, fold.fraction, energy, &applied)
-                .map_err(record_error("folding"))
+                .map_err(record_error(name))
         };
         record(&fold, 0, recorder)?;
         let (mut iterations_total, mut cuts_total) = (0, 0);
         for step in 1..=self.steps {
             let target = step as f64 / self.steps as f64;
             let (iterations, cut) = bisect(fold.fraction, target, self.max_cuts, &mut |a, b| fold.step(a, b), &|i, j| i + j)
-                .map_err(solve_error("folding", Some(step), None, structure, &dofs))?;
+                .map_err(solve_error(name, Some(step), None, structure, &dofs))?;
             iterations_total += iterations;
             cuts_total += usize::from(cut);
             let energy = Energy {
@@ -293,13 +295,13 @@ impl Analysis for Folding {
             };
             if let Some(what) = non_finite(&fold.problem.asm, None, &energy) {
                 return Err(Error::Stage {
-                    stage: "folding",
+                    stage: name.into(),
                     reason: format!("step {step}: {what} is not finite"),
                 });
             }
             record(&fold, step, recorder)?;
         }
-        recorder.end_stage(Stage::Folding).map_err(record_error("folding"))?;
+        recorder.end_stage(&self.stage).map_err(record_error(name))?;
         (summary.newton_iterations, summary.cut_steps) = (iterations_total, cuts_total);
         summary.equilibrium = frames.check.into();
         summary.height_ratio = height(&fold.problem.asm.x) / h0;
@@ -322,6 +324,7 @@ mod tests {
         let x: Vec<Vector3<f64>> = (0..4).map(|i| Vector3::new(0.0, 0.0, i as f64)).collect();
         let prescribe = |nodes: Vec<usize>, target| Prescription { nodes, axis: 2, target };
         let folding = Folding {
+            stage: Stage::of(crate::record::StageKind::Folding),
             steps: 1,
             max_cuts: 0,
             prescribe: vec![

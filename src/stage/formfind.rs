@@ -166,7 +166,7 @@ mod tests {
 
     fn failure() -> Error {
         Error::Stage {
-            stage: "form-finding",
+            stage: "form-finding".into(),
             reason: "did not converge".into(),
         }
     }

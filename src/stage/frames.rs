@@ -107,7 +107,7 @@ impl FrameBuilder {
     }
 
     /// Tells `recorder` that `stage` begins, with its constrained directions.
-    pub fn begin(&self, recorder: &mut dyn Recorder, stage: Stage) -> RecordResult {
+    pub fn begin(&self, recorder: &mut dyn Recorder, stage: &Stage) -> RecordResult {
         recorder.begin_stage(stage, &self.constraints)
     }
 
@@ -255,6 +255,7 @@ mod tests {
     use super::*;
     use crate::law::{ForceLaw, LinearElastic};
     use crate::model::generate::TowerSpec;
+    use crate::record::StageKind;
     use crate::tsm::{DofMap, Elements};
     use std::sync::Arc;
 
@@ -268,7 +269,7 @@ mod tests {
     }
 
     impl Recorder for LastFrame {
-        fn begin_stage(&mut self, _stage: Stage, constraints: &Constraints) -> RecordResult {
+        fn begin_stage(&mut self, _stage: &Stage, constraints: &Constraints) -> RecordResult {
             self.constraints = constraints.clone();
             Ok(())
         }
@@ -348,7 +349,7 @@ mod tests {
 
         let mut frames = FrameBuilder::new(&structure, &dofs);
         let mut last = LastFrame::default();
-        frames.begin(&mut last, Stage::Folding).unwrap();
+        frames.begin(&mut last, &Stage::of(StageKind::Folding)).unwrap();
         frames.record(&mut last, &problem.asm, 1, 1.0, Energy::default(), &applied).unwrap();
         assert_eq!(last.constraints.len(), model.support_count());
         assert!(last.constraints.0.iter().all(|c| !c.prescribed));

@@ -119,7 +119,7 @@ impl MeasureSpec {
                 .map(|g| match map.get(&g) {
                     Some(&c) => Ok((g, c)),
                     None => Err(Error::Stage {
-                        stage: STAGE,
+                        stage: STAGE.into(),
                         reason: format!("cable group `{g}` has no C in formfinding.cable_c.per_group; add it"),
                     }),
                 })
@@ -171,7 +171,7 @@ fn self_stress_coefficients(model: &Model, groups: &[String], mean: f64) -> Resu
         let qg = q[(g, 0)];
         if !(qg > 0.0) {
             return Err(Error::Stage {
-                stage: STAGE,
+                stage: STAGE.into(),
                 reason: format!(
                     "the layout's least-squares self-stress puts force density {qg:.3e} (not tension) in cable group `{name}`: \
                      this layout has no self-stress near its nominal shape; change the layout or give formfinding.cable_c per group"

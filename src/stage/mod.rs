@@ -9,6 +9,7 @@ pub mod fold;
 pub mod formfind;
 mod frames;
 pub mod measure;
+pub mod sequence;
 pub mod static_load;
 mod statics;
 pub mod substitute;
@@ -72,14 +73,14 @@ pub trait Analysis {
 
 /// A Newton failure as a stage error, the DOF it is about named by node and direction.
 fn solve_error<'a>(
-    stage: &'static str,
+    stage: &'a str,
     step: Option<usize>,
     time: Option<f64>,
     structure: &'a Structure,
     dofs: &'a DofMap,
 ) -> impl FnOnce(SolveError) -> Error + 'a {
     move |source| Error::Solve {
-        stage,
+        stage: stage.into(),
         step,
         time,
         at: source.dof().map(|d| dofs.label(&structure.model, d).into()),
@@ -88,6 +89,9 @@ fn solve_error<'a>(
 }
 
 /// A recorder failure as a stage error, keeping its source.
-fn record_error(stage: &'static str) -> impl Fn(RecordError) -> Error {
-    move |source| Error::Record { stage, source }
+fn record_error(stage: &str) -> impl Fn(RecordError) -> Error + '_ {
+    move |source| Error::Record {
+        stage: stage.into(),
+        source,
+    }
 }

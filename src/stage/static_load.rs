@@ -17,6 +17,7 @@ use nalgebra::Vector3;
 /// The static-load stage.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StaticLoad {
+    pub stage: Stage,
     /// Nodal load pattern this stage adds [N per node] (empty: gravity only).
     pub loads: Vec<Vector3<f64>>,
     /// Load (or displacement) steps.
@@ -24,6 +25,10 @@ pub struct StaticLoad {
     /// A failed step is halved up to this many times.
     pub max_cuts: u32,
     pub control: Option<Control>,
+    /// The start is under the structure's constant load (weight, dead loads) already, so
+    /// only the pattern is stepped; otherwise (the unloaded shape) the constant load is
+    /// stepped with it.
+    pub start_loaded: bool,
 }
 
 /// Displacement control: the free direction `axis` of `node` moves by `displacement` [m].
@@ -53,9 +58,17 @@ pub struct StaticSummary {
 }
 
 impl StaticLoad {
-    /// The loads that stay on after the stage ended at load factor `lambda`.
-    pub fn dead_load(&self, lambda: f64) -> Vec<Vector3<f64>> {
-        self.loads.iter().map(|f| f * lambda).collect()
+    /// The loads that stay on after the stage ended at load factor `lambda`: those of
+    /// its start (`before`, empty for none) and its pattern × λ.
+    pub fn dead_load(&self, before: &[Vector3<f64>], lambda: f64) -> Vec<Vector3<f64>> {
+        let pattern = self.loads.iter().map(|f| f * lambda);
+        if before.is_empty() {
+            return pattern.collect();
+        }
+        if self.loads.is_empty() {
+            return before.to_vec();
+        }
+        before.iter().zip(pattern).map(|(b, p)| b + p).collect()
     }
 }
 
@@ -130,6 +143,7 @@ impl TangentSink for WithoutColumn<'_> {
 
 /// What the stage carries from step to step.
 struct Steps<'a> {
+    stage: &'a Stage,
     structure: &'a Structure,
     dofs: &'a DofMap,
     newton: NewtonSettings,
@@ -156,13 +170,13 @@ impl Steps<'_> {
         };
         if let Some(what) = non_finite(asm, None, &energy) {
             return Err(Error::Stage {
-                stage: "static",
+                stage: self.stage.name.clone(),
                 reason: format!("step {}: {what} is not finite", self.recorded),
             });
         }
         self.frames
             .record(recorder, asm, self.recorded, fraction, energy, &self.applied)
-            .map_err(record_error("static"))?;
+            .map_err(record_error(self.stage.name()))?;
         self.recorded += 1;
         Ok(())
     }
@@ -193,7 +207,7 @@ impl Steps<'_> {
             let previous = phase.asm().x.clone();
             let (from, to) = ((step - 1) as f64 / steps as f64, step as f64 / steps as f64);
             let (iterations, cut) = bisect(from, to, max_cuts, &mut |_, to| phase.solve_to(to), &|a, b| a + b).map_err(solve_error(
-                "static",
+                self.stage.name(),
                 Some(self.recorded),
                 None,
                 self.structure,
@@ -250,7 +264,7 @@ impl Steps<'_> {
         let dofs = self.dofs;
         let model = &self.structure.model;
         let dof = dofs.free(control.node, control.axis).ok_or_else(|| Error::Stage {
-            stage: "static",
+            stage: self.stage.name.clone(),
             reason: format!(
                 "the controlled direction, node `{}` {}, is supported; control a free direction",
                 model.nodes[control.node].id,
@@ -388,8 +402,8 @@ impl Phase for ControlSteps<'_> {
 impl Analysis for StaticLoad {
     type Summary = StaticSummary;
 
-    /// From an equilibrium without load (`state`), applies the structure's constant load
-    /// (weight, dead loads) and this stage's pattern.
+    /// From the equilibrium `state`, applies this stage's pattern and, from the unloaded
+    /// shape, the structure's constant load (weight, dead loads).
     fn run(&self, structure: &Structure, state: State, settings: &Settings, recorder: &mut dyn Recorder) -> Result<(State, StaticSummary)> {
         let model = &structure.model;
         let dofs = DofMap::new(model, &[]);
@@ -397,10 +411,15 @@ impl Analysis for StaticLoad {
         let rest = state.rest_of(structure);
         let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, state.positions.clone(), rest);
         let mut steps = Steps {
+            stage: &self.stage,
             structure,
             dofs: &dofs,
             newton: settings.newton,
-            applied: vec![Vector3::zeros(); n],
+            applied: if self.start_loaded {
+                structure.constant_load()
+            } else {
+                vec![Vector3::zeros(); n]
+            },
             work: 0.0,
             start: state.positions.clone(),
             strain0: asm.strain_energy(),
@@ -412,7 +431,7 @@ impl Analysis for StaticLoad {
             frames: FrameBuilder::new(structure, &dofs),
             recorded: 0,
         };
-        steps.frames.begin(recorder, Stage::Static).map_err(record_error("static"))?;
+        steps.frames.begin(recorder, &self.stage).map_err(record_error(self.stage.name()))?;
         steps.record(&asm, 0.0, recorder)?;
         let constant = structure.constant_load();
         let x = match self.control {
@@ -421,7 +440,7 @@ impl Analysis for StaticLoad {
                 steps.load_control(asm, &total, self.steps, self.max_cuts, recorder)?
             }
             Some(control) => {
-                let x = if constant.iter().any(|f| *f != Vector3::zeros()) {
+                let x = if !self.start_loaded && constant.iter().any(|f| *f != Vector3::zeros()) {
                     steps.load_control(asm, &constant, self.steps, self.max_cuts, recorder)?
                 } else {
                     asm.x.clone()
@@ -432,7 +451,7 @@ impl Analysis for StaticLoad {
                 x
             }
         };
-        recorder.end_stage(Stage::Static).map_err(record_error("static"))?;
+        recorder.end_stage(&self.stage).map_err(record_error(self.stage.name()))?;
         steps.summary.equilibrium = steps.frames.check.into();
         let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, x, rest);
         steps.summary.lowest_stiffness = super::eigen::lowest_stiffness(&asm)?.0;

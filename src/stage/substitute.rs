@@ -102,7 +102,7 @@ impl SubstitutionSummary {
             return Ok(());
         }
         Err(Error::Stage {
-            stage: "substitution",
+            stage: "substitution".into(),
             reason: format!(
                 "the real structure is not stable: lowest eigenvalue of K_T {:.3e} N/m, at {}; raise the prestress \
                  (`substitution.prestress_scale`), change the materials, or set `substitution.allow_unstable: true` to run anyway",

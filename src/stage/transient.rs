@@ -23,8 +23,9 @@ pub struct Transient {
     pub params: NewmarkParams,
     /// Duration [s].
     pub duration: f64,
-    /// With the structure's Rayleigh damping; undamped otherwise.
-    pub damped: bool,
+    /// Rayleigh damping C = αM + βK (zero: undamped), the pipeline's to set from the
+    /// eigen stage the config names.
+    pub rayleigh: Rayleigh,
     pub tangent: DampingTangent,
     /// Nodal loads and ground motion (the structure's constant load acts besides).
     pub loads: Loads,
@@ -146,11 +147,11 @@ impl TransientSummary {
 }
 
 impl Transient {
-    fn integrator(&self, structure: &Structure, settings: &Settings) -> Integrator {
+    fn integrator(&self, settings: &Settings) -> Integrator {
         Integrator {
             params: self.params,
             damping: Damping {
-                rayleigh: if self.damped { structure.damping } else { Rayleigh::default() },
+                rayleigh: self.rayleigh,
                 tangent: self.tangent,
             },
             newton: settings.newton,
@@ -192,10 +193,10 @@ impl Transient {
         let name = self.stage.name();
         let model = &structure.model;
         let dofs = DofMap::new(model, &[]);
-        let state = self
-            .initial
-            .apply(model, state)
-            .map_err(|reason| Error::Stage { stage: name, reason })?;
+        let state = self.initial.apply(model, state).map_err(|reason| Error::Stage {
+            stage: name.into(),
+            reason,
+        })?;
         let masses = structure.free_masses(&dofs);
         let constant = structure.constant_load();
         let loads = FreeLoads::new(&self.loads, &constant, &masses, &dofs);
@@ -208,7 +209,7 @@ impl Transient {
         let rest = rest_lengths.as_deref().unwrap_or(&structure.elements.rest);
         let schedule = (!self.actuators.is_empty()).then(|| RestSchedule::new(rest.to_vec(), self.actuators.clone()));
         let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, state.positions, rest);
-        let mut nm = Newmark::actuated(asm, masses, v0, f0, &self.integrator(structure, settings), schedule);
+        let mut nm = Newmark::actuated(asm, masses, v0, f0, &self.integrator(settings), schedule);
         if self.initial.zero_acceleration {
             nm.start_with_zero_acceleration();
         }
@@ -223,7 +224,7 @@ impl Transient {
             ..Default::default()
         };
         let mut frames = FrameBuilder::new(structure, &dofs);
-        frames.begin(recorder, self.stage).map_err(record_error(name))?;
+        frames.begin(recorder, &self.stage).map_err(record_error(name))?;
         // The load on every node at `load_time`, the time the step's equation took its load
         // at (before time is re-anchored to the grid, which may move it by an ulp across a
         // step load's end): the structure's constant load and the stage's loads on every
@@ -268,7 +269,7 @@ impl Transient {
             nm.time = time;
             if let Some(what) = non_finite(&nm.asm, Some(&nm.v), &nm.energy) {
                 return Err(Error::Stage {
-                    stage: name,
+                    stage: name.into(),
                     reason: format!("step {step} (t = {time:.4} s): {what} is not finite"),
                 });
             }
@@ -283,7 +284,7 @@ impl Transient {
                 frames.observe(&nm.asm.x, step, time);
             }
         }
-        recorder.end_stage(self.stage).map_err(record_error(name))?;
+        recorder.end_stage(&self.stage).map_err(record_error(name))?;
         summary.equilibrium = frames.check.into();
         summary.final_kinetic = nm.energy.kinetic;
         (summary.failed_iterations, summary.failed_factorizations) = (nm.retried.iterations, nm.retried.factorizations);
