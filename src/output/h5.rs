@@ -230,7 +230,9 @@ impl Recorder for Hdf5Recorder {
                 nodes: &open.node_ids,
                 members: &open.member_ids,
             };
-            let series = Series::create(open.file.create_group(layout.stage.name())?, layout, ids, record, chunk)?;
+            let group = open.file.create_group(layout.stage.name())?;
+            str_attr(&group, "stage_kind", layout.stage.kind.name())?;
+            let series = Series::create(group, layout, ids, record, chunk)?;
             open.series.push((layout.stage.clone(), series));
         }
         open.eigen_pending = record.stages.iter().filter(|l| l.stage.kind == StageKind::Eigen).count();
@@ -291,6 +293,7 @@ impl Recorder for Hdf5Recorder {
         let open = self.open()?;
         let mut g = Dims::new(open.static_group(record.stage.name())?);
         open.eigen_pending = open.eigen_pending.saturating_sub(1);
+        str_attr(&g.group, "stage_kind", record.stage.kind.name())?;
         let modes: Vec<i64> = (1..=record.omega2.len() as i64).collect();
         g.coord("mode", &modes, "1", "mode number (1-based, ascending frequency)")?;
         g.labels("node", &open.node_ids, "node id")?;

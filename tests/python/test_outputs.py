@@ -336,3 +336,33 @@ def test_foxglove_layout_shows_scene_and_energy():
     plot = next(v for k, v in panels.items() if k.startswith("Plot!"))
     assert {p["value"] for p in plot["paths"]} == {f"/tsim/energy.{f}" for f in ["kinetic", "strain", "damping", "total"]}
     assert set(panels) == {layout["layout"]["first"], layout["layout"]["second"]}
+
+
+def test_a_stage_list_writes_one_group_per_entry(tsim_bin, tmp_path):
+    """configs/examples/tower_stages.yaml (gravity → modes → quake → decay): each entry is a
+    group named after it that opens in xarray, says its kind, and starts where the stage it
+    starts from ended; the replay names the same stages in the same order."""
+    config = ROOT / "configs/examples/tower_stages.yaml"
+    subprocess.run([tsim_bin, "run", config, "--out", tmp_path], check=True, capture_output=True)
+    case = next(tmp_path.rglob("result.h5")).parent
+    kinds = {"gravity": "static", "modes": "eigen", "quake": "transient", "decay": "transient"}
+    with h5py.File(case / "result.h5") as f:
+        assert {g: f[g].attrs.get("stage_kind") for g in kinds} == kinds
+        # The paper's groups are not written for a list.
+        assert not {"static", "eigen", "free_vibration", "folding", "deployment"} & set(f)
+    ds = {g: xr.open_dataset(case / "result.h5", engine="h5netcdf", group=g) for g in kinds}
+    assert ds["quake"].position.dims == ("time", "node", "xyz")
+    assert ds["modes"].omega2.dims == ("mode",)
+    # 1 s at dt = 2 ms, every step recorded, step 0 included.
+    assert ds["quake"].sizes["time"] == ds["decay"].sizes["time"] == 501
+    # Each stage starts from the one before: bit-equal positions at the hand-over.
+    np.testing.assert_array_equal(ds["gravity"].position[-1], ds["quake"].position[0])
+    np.testing.assert_array_equal(ds["quake"].position[-1], ds["decay"].position[0])
+    np.testing.assert_array_equal(ds["quake"].velocity[-1], ds["decay"].velocity[0])
+    assert ds["modes"].attrs["rayleigh_beta"] > 0
+    with open(case / "replay.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        stages = [m.name for _, c, _, m in reader.iter_decoded_messages() if c.topic == "/tsim/stage"]
+    assert stages == ["formfinding", "gravity", "modes", "quake", "decay"]
+    summary = json.loads((case / "outcome.json").read_text())["summary"]
+    assert {g: summary[g]["kind"] for g in kinds} == kinds
