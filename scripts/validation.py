@@ -634,12 +634,12 @@ def structure_section(case_dir):
     return f"""## 9. Structure analysis: self-stress, mechanisms, stability (configs/paper.yaml)
 
 The equilibrium-matrix analysis of the equilibrium the dynamic stages start from, with the
-substituted prestress (`/structure_analysis` of result.h5; `src/rigidity/`). The same figures
+substituted prestress (`/structure_analysis` of result.h5; `crates/tsim-core/src/rigidity/`). The same figures
 are checked against an independent NumPy SVD, K_G and stress matrix in
 tests/python/test_rigidity.py; the closed forms (regular n-prisms: s = 1, m = 2n − 5 plus 6
 rigid-body modes, prestress and super stable at the twist π/2 − π/n, s = 0 and not stable
 10° away, not stable with the prestress reversed; Snelson's X-module: s = 1, m = 0 in the
-plane, its self-stress t_strut = −√2 t_cable) in `src/rigidity/tests.rs`.
+plane, its self-stress t_strut = −√2 t_cable) in `crates/tsim-core/src/rigidity/tests.rs`.
 
 {table(['quantity', 'measured', 'note'], rows)}
 Criteria: prestress stable = a proper stress (struts compressed, cables tensioned) with

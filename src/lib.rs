@@ -1,8 +1,10 @@
 //! tsim: tensegrity simulation by the tangent stiffness method (TSM).
 //!
-//! One element force equation ([`law`]) and one tangent stiffness ([`tsm`]) serve every
-//! stage ([`stage`]): form-finding, substitution by real materials, eigen analysis, free
-//! vibration, folding and deployment, all solved by one Newton driver ([`solve`]).
+//! The mechanics are the `tsim-core` crate, re-exported here under the same module names
+//! ([`law`], [`tsm`], [`stage`], ...): one element force equation and one tangent stiffness
+//! serve every stage. This crate adds what a batch runner needs around them: the YAML
+//! config and its stage plan ([`config`]), one case as a sequence of stages
+//! ([`pipeline`]), the HDF5 and MCAP writers ([`output`]) and the runner ([`run`]).
 
 // `!(x > 0.0)` is how tsim writes "not positive, or NaN" (a NaN input must fail the
 // check, which `x <= 0.0` would let through); clippy's suggested `partial_cmp` form hides
@@ -10,18 +12,9 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod config;
-pub mod dynamics;
-pub mod error;
-pub mod law;
-pub mod model;
 pub mod output;
 pub mod pipeline;
-pub mod record;
-pub mod rigidity;
 pub mod run;
-pub mod solve;
-pub mod stage;
-pub mod structure;
-pub mod tsm;
 
-pub use error::{Error, Result};
+pub use tsim_core::{dynamics, error, law, model, record, rigidity, solve, stage, structure, tsm};
+pub use tsim_core::{Error, Result};

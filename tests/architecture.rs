@@ -1,0 +1,154 @@
+//! The layering of ARCHITECTURE.md ("What each room may touch") as a test: every
+//! `crate::<room>` path in a module's code (comments and `#[cfg(test)]` modules left out)
+//! must be an import the table allows. The crate boundary already keeps tsim-core from
+//! the config, the files and the runner; this keeps the rooms inside each crate in order.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// Each room and the rooms it may import: ARCHITECTURE.md's table.
+const ALLOWED: &[(&str, &[&str])] = &[
+    ("main", &["run", "config"]),
+    ("run", &["pipeline", "output", "config", "record"]),
+    ("output", &["config", "record", "model"]),
+    (
+        "pipeline",
+        &["config", "stage", "structure", "record", "model", "rigidity", "dynamics", "error"],
+    ),
+    ("config", &["stage", "dynamics", "solve", "law", "model", "record", "error"]),
+    (
+        "stage",
+        &[
+            "structure",
+            "record",
+            "dynamics",
+            "rigidity",
+            "tsm",
+            "solve",
+            "law",
+            "model",
+            "error",
+        ],
+    ),
+    ("error", &["record", "solve", "model"]),
+    ("record", &["dynamics", "rigidity", "model"]),
+    ("structure", &["tsm", "model"]),
+    ("dynamics", &["tsm", "solve"]),
+    ("rigidity", &["tsm", "solve", "model"]),
+    ("tsm", &["law", "model", "solve"]),
+    ("law", &[]),
+    ("model", &[]),
+    ("solve", &[]),
+];
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            rust_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            out.push(path);
+        }
+    }
+}
+
+/// The rooms a file's code names as `crate::<room>` (or `tsim_core::<room>`), up to its
+/// first `#[cfg(test)]`, comments removed.
+fn imports(text: &str) -> BTreeSet<String> {
+    let mut rooms = BTreeSet::new();
+    for line in text.lines().take_while(|l| !l.trim_start().starts_with("#[cfg(test)]")) {
+        let code = line.split("//").next().unwrap();
+        for prefix in ["crate::", "tsim_core::", "tsim::"] {
+            for (at, _) in code.match_indices(prefix) {
+                if code[..at].ends_with(|c: char| c.is_ascii_alphanumeric() || c == '_') {
+                    continue; // `tsim::` inside `my_tsim::`
+                }
+                rooms.extend(heads(&code[at + prefix.len()..]));
+            }
+        }
+    }
+    rooms
+}
+
+/// The first path segments after `crate::`: one (`law::x`), or each of a group
+/// (`{law::x, tsm::{a, b}}`); only module names (lower case) count.
+fn heads(rest: &str) -> Vec<String> {
+    let ident = |s: &str| -> String {
+        s.trim_start()
+            .chars()
+            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+            .collect()
+    };
+    let Some(group) = rest.strip_prefix('{') else {
+        return vec![ident(rest)]
+            .into_iter()
+            .filter(|r| r.starts_with(|c: char| c.is_ascii_lowercase()))
+            .collect();
+    };
+    let (mut depth, mut start, mut out) = (0, 0, Vec::new());
+    for (i, c) in group.char_indices() {
+        match c {
+            '{' => depth += 1,
+            '}' if depth == 0 => {
+                out.push(ident(&group[start..i]));
+                break;
+            }
+            '}' => depth -= 1,
+            ',' if depth == 0 => {
+                out.push(ident(&group[start..i]));
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    out.retain(|r| r.starts_with(|c: char| c.is_ascii_lowercase()));
+    out
+}
+
+#[test]
+fn every_import_runs_down_the_table() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let allowed: BTreeMap<&str, &[&str]> = ALLOWED.iter().copied().collect();
+    let mut files = Vec::new();
+    for dir in ["src", "crates/tsim-core/src"] {
+        rust_files(&root.join(dir), &mut files);
+    }
+    let mut wrong = Vec::new();
+    let mut seen = 0;
+    for file in &files {
+        let rel = file.strip_prefix(root).unwrap();
+        let inner = rel
+            .strip_prefix("src")
+            .or_else(|_| rel.strip_prefix("crates/tsim-core/src"))
+            .unwrap();
+        let first = inner.components().next().unwrap().as_os_str().to_str().unwrap();
+        let room = first.trim_end_matches(".rs");
+        if room == "lib" {
+            continue; // the crate roots declare and re-export the rooms
+        }
+        let may = allowed
+            .get(room)
+            .unwrap_or_else(|| panic!("{}: room `{room}` is not in the table", rel.display()));
+        for import in imports(&std::fs::read_to_string(file).unwrap()) {
+            seen += 1;
+            if import != room && !may.contains(&import.as_str()) {
+                wrong.push(format!("{}: `{room}` imports `{import}`", rel.display()));
+            }
+        }
+    }
+    // A scan that found no imports at all would pass vacuously.
+    assert!(seen > 100, "only {seen} imports found: is the scan reading the sources?");
+    assert!(
+        wrong.is_empty(),
+        "imports the table (ARCHITECTURE.md) does not allow:\n{}",
+        wrong.join("\n")
+    );
+}
+
+#[test]
+fn the_scan_sees_an_import_and_skips_comments_and_tests() {
+    let text = "use crate::solve::Newton;\n// crate::output in a comment\nfn f() { crate::law::x(); }\n\
+                use crate::{tsm::{A, B}, model::Model, Error};\n#[cfg(test)]\nmod tests { use crate::config; }\n";
+    let found: Vec<String> = imports(text).into_iter().collect();
+    assert_eq!(found, ["law", "model", "solve", "tsm"]);
+}
