@@ -4,6 +4,7 @@
 //! the change does on the members.
 
 use super::TimeFunction;
+use crate::tsm::Assembly;
 
 /// One actuator: the rest lengths of `members` scaled in time,
 /// l0(t) = l0(0) · (1 + (scale − 1) f(t)), l0(0) the rest length at the stage's start.
@@ -53,6 +54,89 @@ impl RestSchedule {
     /// The time from which every rest length is constant.
     pub fn end(&self) -> f64 {
         self.actuators.iter().map(|a| a.time.end()).fold(0.0, f64::max)
+    }
+}
+
+/// A stage's rest-length schedule as a Newmark stage runs it, and what the ledger keeps of
+/// it between steps.
+pub(super) struct Actuation {
+    schedule: RestSchedule,
+    /// Rest lengths of the last converged state [m], and those of the step being solved.
+    rest: Vec<f64>,
+    rest_next: Vec<f64>,
+    /// ∂U/∂l0 of every member at the last converged state [N], and a buffer for the next.
+    force: Vec<f64>,
+    force_next: Vec<f64>,
+    /// l̇0/l0 just after the last converged time (the start of the next step) [1/s].
+    rate_after: Vec<f64>,
+    /// l̇0/l0 the step's equation uses: at the end of the step being solved (objective
+    /// damping strains only what the rest length does not take up) [1/s].
+    pub(super) rate: Vec<f64>,
+}
+
+impl Actuation {
+    /// Sets `asm` to the schedule's rest lengths at t = 0.
+    pub(super) fn start(schedule: RestSchedule, asm: &mut Assembly) -> Self {
+        let members = asm.states.len();
+        let mut rest = vec![0.0; members];
+        schedule.at(0.0, &mut rest);
+        asm.set_rest(&rest);
+        asm.update();
+        let mut force = vec![0.0; members];
+        asm.energy_rest_derivatives(&mut force);
+        let mut rate_after = vec![0.0; members];
+        schedule.relative_rate(0.0, false, &mut rate_after);
+        Actuation {
+            schedule,
+            rest_next: rest.clone(),
+            rest,
+            force_next: force.clone(),
+            force,
+            // From t = 0 on: the rate after it.
+            rate: rate_after.clone(),
+            rate_after,
+        }
+    }
+
+    /// Whether the rate jumps at the step's start `t` (an actuator starting or stopping);
+    /// if so, `rate` becomes the rate just after `t`, for the caller to re-form the state's
+    /// damping force and acceleration with.
+    pub(super) fn jumps_at(&mut self, t: f64) -> bool {
+        self.schedule.relative_rate(t, false, &mut self.rate_after);
+        let jumped = self.rate_after != self.rate;
+        if jumped {
+            self.rate.copy_from_slice(&self.rate_after);
+        }
+        jumped
+    }
+
+    /// Sets the step's end to `t_next`: its rest lengths (in `asm`, from the step's first
+    /// residual on) and its rate there.
+    pub(super) fn step_to(&mut self, t_next: f64, asm: &mut Assembly) {
+        self.schedule.at(t_next, &mut self.rest_next);
+        self.schedule.relative_rate(t_next, true, &mut self.rate);
+        asm.set_rest(&self.rest_next);
+    }
+
+    /// A step failed: back to the start state's rest lengths, and its rate from the step's side.
+    pub(super) fn abandon_step(&mut self, asm: &mut Assembly) {
+        asm.set_rest(&self.rest);
+        self.rate.copy_from_slice(&self.rate_after);
+    }
+
+    /// The trapezoidal work Σ ½ (q_n + q_{n+1}) (l0_{n+1} − l0_n) of the step that converged
+    /// at `asm` (q = ∂U/∂l0), which then becomes the last converged state. With the
+    /// trapezoidal work of the nodal forces this is the trapezoidal rule along the step's
+    /// straight path in (x, l0): the ledger closes to the rule's O(Δt²).
+    pub(super) fn commit(&mut self, asm: &Assembly) -> f64 {
+        asm.energy_rest_derivatives(&mut self.force_next);
+        let work = (self.force.iter().zip(&self.force_next))
+            .zip(self.rest.iter().zip(&self.rest_next))
+            .map(|((q0, q1), (l0, l1))| 0.5 * (q0 + q1) * (l1 - l0))
+            .sum();
+        std::mem::swap(&mut self.force, &mut self.force_next);
+        std::mem::swap(&mut self.rest, &mut self.rest_next);
+        work
     }
 }
 

@@ -2,11 +2,14 @@
 //! a Newton solve by the common driver, and the energy ledger that checks it.
 
 mod actuation;
+mod ledger;
 mod load;
 mod newmark;
 mod rayleigh;
+mod viscous;
 
 pub use actuation::{Actuator, RestSchedule};
+pub use ledger::Energy;
 pub use load::{FreeLoads, GroundMotion, LoadProfile, Loads, NodalLoad, TimeFunction};
-pub use newmark::{Damping, DampingTangent, Energy, Integrator, Newmark, NewmarkParams};
+pub use newmark::{Damping, DampingTangent, Integrator, Newmark, NewmarkParams};
 pub use rayleigh::Rayleigh;

@@ -128,7 +128,7 @@ impl FrameBuilder {
     /// Records the converged step of `motion.newmark` (its time and energy) under `applied`.
     pub fn record_motion(&mut self, recorder: &mut dyn Recorder, motion: Motion, step: usize, applied: &[Vector3<f64>]) -> RecordResult {
         let nm = motion.newmark;
-        self.emit(recorder, &nm.asm, step, nm.time, nm.energy, applied, Some(motion))
+        self.emit(recorder, &nm.asm, step, nm.time, nm.energy(), applied, Some(motion))
     }
 
     /// Fills the frame's buffers and hands it to `recorder`.
@@ -156,7 +156,7 @@ impl FrameBuilder {
             for (i, &vi) in nm.v.iter().enumerate() {
                 let (n, a) = asm.dofs.owner(i);
                 self.velocities[n][a] = vi;
-                balance[a] -= nm.mass[i] * (nm.a[i] + nm.rayleigh.alpha * vi);
+                balance[a] -= nm.mass[i] * (nm.a[i] + nm.rayleigh().alpha * vi);
             }
             nm.member_damping_force(&self.constrained_members, &self.velocities, &mut self.damping);
             base = support_acceleration;

@@ -125,7 +125,7 @@ impl TransientSummary {
     /// stop changing; `loaded` whether some load stays on after that (then the mechanical
     /// energy counted is KE + SE − W, which a constant load leaves conserved).
     fn add_step(&mut self, nm: &Newmark, time: f64, (load_end, loaded): (f64, bool), dt: f64, mechanical: &mut f64) {
-        let e = nm.energy;
+        let e = nm.energy();
         self.max_kinetic = self.max_kinetic.max(e.kinetic);
         self.max_energy = self.max_energy.max(e.kinetic.max(e.strain));
         self.max_balance_error = self.max_balance_error.max(nm.balance_error());
@@ -257,7 +257,7 @@ impl Transient {
             }
         };
         track(&nm.asm.x, 0.0);
-        let mut mechanical = mechanical_energy(&nm.energy, load_end.1);
+        let mut mechanical = mechanical_energy(&nm.energy(), load_end.1);
         for step in 1..=steps {
             let time = step as f64 * dt;
             let failed_before = nm.retried.attempts;
@@ -267,7 +267,7 @@ impl Transient {
             let load_time = nm.time;
             // Re-anchor time to the step grid so that long runs do not drift.
             nm.time = time;
-            if let Some(what) = non_finite(&nm.asm, Some(&nm.v), &nm.energy) {
+            if let Some(what) = non_finite(&nm.asm, Some(&nm.v), &nm.energy()) {
                 return Err(Error::Stage {
                     stage: name.into(),
                     reason: format!("step {step} (t = {time:.4} s): {what} is not finite"),
@@ -286,7 +286,7 @@ impl Transient {
         }
         recorder.end_stage(&self.stage).map_err(record_error(name))?;
         summary.equilibrium = frames.check.into();
-        summary.final_kinetic = nm.energy.kinetic;
+        summary.final_kinetic = nm.energy().kinetic;
         (summary.failed_iterations, summary.failed_factorizations) = (nm.retried.iterations, nm.retried.factorizations);
         summary.settle_time = settled_since;
         summary.wall_seconds = started.elapsed().as_secs_f64();
