@@ -371,6 +371,19 @@ fn max_abs(v: &[f64]) -> Result<(f64, usize), usize> {
     Ok(worst)
 }
 
+/// Where a Newton solve has got to between iterations.
+struct Progress {
+    /// The last increment's length (max-norm, or the problem's [`Residual::length_of`]).
+    increment: f64,
+    /// The energy at the iterate, for a minimization; `None` otherwise.
+    energy: Option<f64>,
+    /// A minimization's last step lowered the energy by no more than its round-off and
+    /// moved at least half as far as the one before.
+    stalled: bool,
+    /// How far the previous iteration moved (∞ before the first).
+    last_moved: f64,
+}
+
 fn iterate(
     problem: &mut impl Residual,
     u: &mut [f64],
@@ -378,18 +391,19 @@ fn iterate(
     length: f64,
     ws: &mut NewtonWorkspace,
 ) -> Result<NewtonReport, SolveError> {
-    let mut increment = 0.0;
     ws.factorizations = 0;
     // max|r| before the last increment (∞ at the start: a held factorization gets a try).
     let mut previous = f64::INFINITY;
     let increment_tolerance = settings.displacement_tolerance * length;
     ws.history.clear();
     ws.energies.clear();
-    let mut energy = problem.energy(u);
-    let mut stalled = false;
-    // How far the previous iteration moved (∞ before the first).
-    let mut last_moved = f64::INFINITY;
-    ws.energies.extend(energy);
+    let mut progress = Progress {
+        increment: 0.0,
+        energy: problem.energy(u),
+        stalled: false,
+        last_moved: f64::INFINITY,
+    };
+    ws.energies.extend(progress.energy);
     let cap = settings.iteration_cap(ws.minimize);
     // Whether this solve starts with the held factorization, until it is replaced.
     let mut on_held = ws.reuse && ws.factored && ws.held.attempt();
@@ -404,15 +418,14 @@ fn iterate(
         })?;
         ws.history.push(res);
         let tolerance = settings.force_tolerance * scale.force + scale.roundoff;
-        // At the residual's round-off floor a minimization also ends when it has stalled:
-        // its last step lowered the energy by no more than the energy's round-off and
-        // moved at least half as far as the one before. Newton's increments shrink
-        // quadratically on the way to a minimum (a 4-strut prism's last ones lower the
-        // energy by less than its round-off too); increments that stop shrinking there
-        // are noise through a direction softer than K's round-off (a 100-stage tower's
-        // measure structure, lowest eigenvalue ~1e-17 of its largest, wandered 90
-        // iterations there).
-        let converged = res <= tolerance && (iteration == 0 || increment <= increment_tolerance || stalled);
+        let increment = progress.increment;
+        // At the residual's round-off floor a minimization also ends when it has stalled
+        // ([`Progress::stalled`]). Newton's increments shrink quadratically on the way to a
+        // minimum (a 4-strut prism's last ones lower the energy by less than its round-off
+        // too); increments that stop shrinking there are noise through a direction softer
+        // than K's round-off (a tall tower's measure structure, lowest eigenvalue ~1e-17 of
+        // its largest).
+        let converged = res <= tolerance && (iteration == 0 || increment <= increment_tolerance || progress.stalled);
         if converged || (iteration > 0 && res <= tolerance + scale.frozen && frozen(increment, u)) {
             if on_held && iteration > 0 {
                 ws.held.record(true);
@@ -437,40 +450,63 @@ fn iterate(
             if std::mem::take(&mut on_held) {
                 ws.held.record(false);
             }
-            ws.factored = false;
-            ws.solver.clear();
-            problem.tangent(&mut *ws.solver);
-            if ws.minimize && problem.symmetric() && energy.is_some() {
-                ws.factorizations += shifted_cholesky(ws, scale.force / length)?;
-            } else {
-                ws.factorizations += 1;
-                ws.solver.factor(problem.symmetric())?;
-            }
-            ws.factored = true;
+            factor_tangent(problem, ws, scale.force / length, progress.energy.is_some())?;
         }
         previous = res;
-        ws.d.copy_from_slice(&ws.r);
-        ws.solver.solve(&mut ws.d)?;
-        (increment, _) = max_abs(&ws.d).map_err(|dof| SolveError::NonFinite { iteration, dof: Some(dof) })?;
-        increment = problem.length_of(&ws.d).unwrap_or(increment);
-        match energy {
-            Some(e0) => {
-                let (moved, e, corrections) = line_search(problem, u, e0, ws)?;
-                stalled = e0 - e <= ENERGY_ROUNDOFF * e0.abs() && moved >= 0.5 * last_moved;
-                (increment, last_moved) = (moved, moved);
-                ws.factorizations += corrections;
-                energy = Some(e);
-                ws.energies.push(e);
-            }
-            None => {
-                let damping = (settings.max_step * length / increment).min(1.0);
-                for (ui, di) in u.iter_mut().zip(&ws.d) {
-                    *ui += damping * di;
-                }
+        step(problem, u, settings.max_step * length, ws, &mut progress, iteration)?;
+    }
+    unreachable!("the loop returns at its last iteration")
+}
+
+/// Assembles the tangent at the iterate the last residual was evaluated at and factors
+/// it: by a shifted Cholesky for a minimization (`minimizing`, the problem symmetric),
+/// whose shift is relative to `stiffness` (the force scale over the model length).
+fn factor_tangent(problem: &mut impl Residual, ws: &mut NewtonWorkspace, stiffness: f64, minimizing: bool) -> Result<(), SolveError> {
+    ws.factored = false;
+    ws.solver.clear();
+    problem.tangent(&mut *ws.solver);
+    if ws.minimize && problem.symmetric() && minimizing {
+        ws.factorizations += shifted_cholesky(ws, stiffness)?;
+    } else {
+        ws.factorizations += 1;
+        ws.solver.factor(problem.symmetric())?;
+    }
+    ws.factored = true;
+    Ok(())
+}
+
+/// Solves for the increment from the residual in `ws.r` and moves `u` along it: by the
+/// energy line search for a minimization, else by the whole increment, or the part of it
+/// that moves no coordinate further than `max_step` [m].
+fn step(
+    problem: &mut impl Residual,
+    u: &mut [f64],
+    max_step: f64,
+    ws: &mut NewtonWorkspace,
+    progress: &mut Progress,
+    iteration: usize,
+) -> Result<(), SolveError> {
+    ws.d.copy_from_slice(&ws.r);
+    ws.solver.solve(&mut ws.d)?;
+    let (increment, _) = max_abs(&ws.d).map_err(|dof| SolveError::NonFinite { iteration, dof: Some(dof) })?;
+    progress.increment = problem.length_of(&ws.d).unwrap_or(increment);
+    match progress.energy {
+        Some(e0) => {
+            let (moved, e, corrections) = line_search(problem, u, e0, ws)?;
+            progress.stalled = e0 - e <= ENERGY_ROUNDOFF * e0.abs() && moved >= 0.5 * progress.last_moved;
+            (progress.increment, progress.last_moved) = (moved, moved);
+            ws.factorizations += corrections;
+            progress.energy = Some(e);
+            ws.energies.push(e);
+        }
+        None => {
+            let damping = (max_step / progress.increment).min(1.0);
+            for (ui, di) in u.iter_mut().zip(&ws.d) {
+                *ui += damping * di;
             }
         }
     }
-    unreachable!("the loop returns at its last iteration")
+    Ok(())
 }
 
 /// Whether an increment of max-norm `increment` at `u` moved no coordinate by more than

@@ -12,6 +12,7 @@ use crate::dynamics::{
 use crate::error::{Error, Result};
 use crate::model::{shape_error, MemberKind, Model};
 use crate::record::{Recorder, Stage};
+use crate::solve::NewtonReport;
 use crate::structure::{State, Structure};
 use crate::tsm::{Assembly, DofMap};
 use nalgebra::Vector3;
@@ -121,6 +122,13 @@ pub struct TransientSummary {
 }
 
 impl TransientSummary {
+    /// Counts a converged step's Newton work; `cut`: it was cut in parts.
+    fn add_effort(&mut self, report: &NewtonReport, cut: bool) {
+        self.newton_iterations += report.iterations;
+        self.factorizations += report.factorizations;
+        self.cut_steps += usize::from(cut);
+    }
+
     /// Takes in one converged step at stage time `time`; `load_end` is when the loads
     /// stop changing; `loaded` whether some load stays on after that (then the mechanical
     /// energy counted is KE + SE − W, which a constant load leaves conserved).
@@ -204,43 +212,21 @@ impl Transient {
         let started = std::time::Instant::now();
         let mut f0 = vec![0.0; dofs.len()];
         load_free(0.0, &mut f0);
-        let v0 = state.free_velocities(&dofs);
-        let rest_lengths = state.rest_lengths;
-        let rest = rest_lengths.as_deref().unwrap_or(&structure.elements.rest);
-        let schedule = (!self.actuators.is_empty()).then(|| RestSchedule::new(rest.to_vec(), self.actuators.clone()));
-        let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, state.positions, rest);
-        let mut nm = Newmark::actuated(asm, masses, v0, f0, &self.integrator(settings), schedule);
-        if self.initial.zero_acceleration {
-            nm.start_with_zero_acceleration();
-        }
+        let rest_lengths = state.rest_lengths.clone();
+        let mut nm = self.start(structure, &dofs, state, (masses, f0), settings);
         let dt = self.params.dt;
         let steps = (self.duration / dt).round() as usize;
-        let loaded = constant.iter().any(|f| *f != Vector3::zeros()) || self.loads.persist();
-        // Actuators do work until their rest lengths stop changing, as loads do.
-        let actuation_end = self.actuators.iter().map(|a| a.time.end()).fold(0.0, f64::max);
-        let load_end = (self.loads.end().max(actuation_end), loaded);
+        let load_end = self.load_end(&constant);
         let mut summary = TransientSummary {
             steps,
             ..Default::default()
         };
         let mut frames = FrameBuilder::new(structure, &dofs);
         frames.begin(recorder, &self.stage).map_err(record_error(name))?;
-        // The load on every node at `load_time`, the time the step's equation took its load
-        // at (before time is re-anchored to the grid, which may move it by an ulp across a
-        // step load's end): the structure's constant load and the stage's loads on every
-        // direction (on a supported one it goes into the support), and under ground motion
-        // the inertia load −m a_g on the free ones (the supports move with the ground).
         let mut applied = constant.clone();
         let mut record = |frames: &mut FrameBuilder, nm: &Newmark, step: usize, load_time: f64, recorder: &mut dyn Recorder| {
-            applied.copy_from_slice(&constant);
-            self.loads.add_nodal(load_time, &mut applied);
+            self.applied_load(structure, &dofs, &constant, load_time, &mut applied);
             let ground = self.loads.ground_acceleration(load_time);
-            if ground != Vector3::zeros() {
-                for i in 0..dofs.len() {
-                    let (n, a) = dofs.owner(i);
-                    applied[n][a] -= structure.masses[n] * ground[a];
-                }
-            }
             let motion = Motion {
                 newmark: nm,
                 support_acceleration: ground,
@@ -248,15 +234,8 @@ impl Transient {
             frames.record_motion(recorder, motion, step, &applied).map_err(record_error(name))
         };
         record(&mut frames, &nm, 0, 0.0, recorder)?;
-        // The time the shape error last came (and stayed) within the tolerance.
-        let mut settled_since = None;
-        let mut track = |x: &[Vector3<f64>], time: f64| {
-            if let Some(reference) = reference {
-                let within = shape_error(x, reference).0 <= SETTLE_TOLERANCE;
-                settled_since = if within { settled_since.or(Some(time)) } else { None };
-            }
-        };
-        track(&nm.asm.x, 0.0);
+        let mut settle = Settle { reference, since: None };
+        settle.track(&nm.asm.x, 0.0);
         let mut mechanical = mechanical_energy(&nm.energy(), load_end.1);
         for step in 1..=steps {
             let time = step as f64 * dt;
@@ -268,16 +247,15 @@ impl Transient {
             // Re-anchor time to the step grid so that long runs do not drift.
             nm.time = time;
             if let Some(what) = non_finite(&nm.asm, Some(&nm.v), &nm.energy()) {
+                let reason = format!("step {step} (t = {time:.4} s): {what} is not finite");
                 return Err(Error::Stage {
                     stage: name.into(),
-                    reason: format!("step {step} (t = {time:.4} s): {what} is not finite"),
+                    reason,
                 });
             }
-            summary.newton_iterations += report.iterations;
-            summary.factorizations += report.factorizations;
-            summary.cut_steps += usize::from(nm.retried.attempts > failed_before);
+            summary.add_effort(&report, nm.retried.attempts > failed_before);
             summary.add_step(&nm, time, load_end, dt, &mut mechanical);
-            track(&nm.asm.x, time);
+            settle.track(&nm.asm.x, time);
             if step % settings.every == 0 || step == steps {
                 record(&mut frames, &nm, step, load_time, recorder)?;
             } else {
@@ -288,9 +266,73 @@ impl Transient {
         summary.equilibrium = frames.check.into();
         summary.final_kinetic = nm.energy().kinetic;
         (summary.failed_iterations, summary.failed_factorizations) = (nm.retried.iterations, nm.retried.factorizations);
-        summary.settle_time = settled_since;
+        summary.settle_time = settle.since;
         summary.wall_seconds = started.elapsed().as_secs_f64();
         Ok((final_state(&nm, &dofs, rest_lengths), summary))
+    }
+
+    /// The integrator at `state` (its rest lengths, or the elements' own), with the free
+    /// DOFs' masses and external force at t = 0, and the initial acceleration the stage asks for.
+    fn start<'s>(
+        &self,
+        structure: &'s Structure,
+        dofs: &'s DofMap,
+        state: State,
+        (masses, f0): (Vec<f64>, Vec<f64>),
+        settings: &Settings,
+    ) -> Newmark<'s> {
+        let v0 = state.free_velocities(dofs);
+        let rest = state.rest_lengths.as_deref().unwrap_or(&structure.elements.rest);
+        let schedule = (!self.actuators.is_empty()).then(|| RestSchedule::new(rest.to_vec(), self.actuators.clone()));
+        let asm = Assembly::with_rest_lengths(&structure.model, &structure.elements, dofs, state.positions, rest);
+        let mut nm = Newmark::actuated(asm, masses, v0, f0, &self.integrator(settings), schedule);
+        if self.initial.zero_acceleration {
+            nm.start_with_zero_acceleration();
+        }
+        nm
+    }
+
+    /// When the loads stop changing (actuators do work until their rest lengths stop
+    /// changing, as loads do), and whether some load stays on after that, besides the
+    /// structure's `constant` load.
+    fn load_end(&self, constant: &[Vector3<f64>]) -> (f64, bool) {
+        let loaded = constant.iter().any(|f| *f != Vector3::zeros()) || self.loads.persist();
+        let actuation_end = self.actuators.iter().map(|a| a.time.end()).fold(0.0, f64::max);
+        (self.loads.end().max(actuation_end), loaded)
+    }
+
+    /// The load on every node at `load_time` into `applied`, the time the step's equation
+    /// took its load at (before time is re-anchored to the grid, which may move it by an
+    /// ulp across a step load's end): the structure's `constant` load and the stage's loads
+    /// on every direction (on a supported one it goes into the support), and under ground
+    /// motion the inertia load −m a_g on the free ones (the supports move with the ground).
+    fn applied_load(&self, structure: &Structure, dofs: &DofMap, constant: &[Vector3<f64>], load_time: f64, applied: &mut [Vector3<f64>]) {
+        applied.copy_from_slice(constant);
+        self.loads.add_nodal(load_time, applied);
+        let ground = self.loads.ground_acceleration(load_time);
+        if ground != Vector3::zeros() {
+            for i in 0..dofs.len() {
+                let (n, a) = dofs.owner(i);
+                applied[n][a] -= structure.masses[n] * ground[a];
+            }
+        }
+    }
+}
+
+/// The time from which a transient's shape stays within [`SETTLE_TOLERANCE`] of a
+/// reference shape, checked at every step.
+struct Settle<'r> {
+    reference: Option<&'r [Vector3<f64>]>,
+    /// The time the shape error last came (and stayed) within the tolerance.
+    since: Option<f64>,
+}
+
+impl Settle<'_> {
+    fn track(&mut self, x: &[Vector3<f64>], time: f64) {
+        if let Some(reference) = self.reference {
+            let within = shape_error(x, reference).0 <= SETTLE_TOLERANCE;
+            self.since = if within { self.since.or(Some(time)) } else { None };
+        }
     }
 }
 
