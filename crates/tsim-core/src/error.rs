@@ -5,8 +5,10 @@ use crate::model::ModelError;
 use crate::record::RecordError;
 use crate::solve::SolveError;
 
+/// An error of the library: what failed, in which stage and where.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
+    /// The model is invalid, or a node, member or group named for it is not in it.
     #[error("model: {0}")]
     Model(#[from] ModelError),
     /// A Newton solve failed; `at` names the free DOF the error is about ("node `t3`
@@ -14,23 +16,50 @@ pub enum Error {
     /// `String`: it keeps `Error` small enough to return by value everywhere).
     #[error("{stage}{}: {}{}", step_text(*.step, *.time), source.describe(at.as_deref()), smaller_steps(stage, source))]
     Solve {
+        /// The stage whose solve failed.
         stage: StageName,
+        /// The step the solve failed in, for a stage that takes steps.
         step: Option<usize>,
+        /// The time the failed step was to end at [s], for a time-stepping stage.
         time: Option<f64>,
+        /// How the Newton solve failed.
         source: SolveError,
+        /// The free DOF the failure is about, as node and direction, if it names one.
         at: Option<Box<str>>,
     },
+    /// Substitution found no rest length at which a member's real material carries its
+    /// scaled form-found force.
     #[error("substitution: member `{member}`: {reason}")]
-    Substitution { member: String, reason: String },
+    Substitution {
+        /// The member's id.
+        member: String,
+        /// Why no rest length was found.
+        reason: String,
+    },
+    /// A stage failed other than in its Newton solve or its recorder (bad input, a
+    /// non-finite result, a failed eigen solve).
     #[error("{stage}: {reason}")]
-    Stage { stage: StageName, reason: String },
+    Stage {
+        /// The stage that failed.
+        stage: StageName,
+        /// What failed.
+        reason: String,
+    },
     /// A failure and what the analysis of the layout says about it (form-finding of a
     /// layout without a proper self-stress).
     #[error("{source}; {note}")]
-    Explained { source: Box<Error>, note: String },
+    Explained {
+        /// The failure.
+        source: Box<Error>,
+        /// What the analysis of the layout says about it.
+        note: String,
+    },
+    /// The recorder failed to take a step of a stage.
     #[error("{stage}: recording failed: {source}")]
     Record {
+        /// The stage whose step was being recorded.
         stage: StageName,
+        /// The recorder's error.
         #[source]
         source: RecordError,
     },
@@ -69,6 +98,7 @@ fn step_text(step: Option<usize>, time: Option<f64>) -> String {
 /// named by the user; `Arc`: as small as `&'static str`, cheap to clone).
 pub type StageName = std::sync::Arc<str>;
 
+/// A result whose error is, by default, the library's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 #[cfg(test)]
