@@ -9,7 +9,7 @@
 //! bounded queues.
 
 use super::schema::{CaseConfig, EigenSpec};
-use super::StageEntrySpec;
+use super::sequence::{Section, StageEntrySpec};
 use crate::model::Model;
 use crate::solve::{krylov_dimension, LinearSolverChoice, DENSE_LIMIT};
 use crate::stage::eigen::ModeSolver;
@@ -171,69 +171,88 @@ fn dense(n: f64) -> f64 {
     n * n * 8.0
 }
 
+/// The sizes an estimate is built from: the model's and which files are written.
+struct Sizes {
+    nodes: f64,
+    members: f64,
+    /// Free DOF.
+    n: f64,
+    /// Bytes of all member ids (MCAP names the members of every frame).
+    ids: f64,
+    h5: bool,
+    mcap: bool,
+}
+
+impl Sizes {
+    fn new(cfg: &CaseConfig, model: &Model) -> Self {
+        Sizes {
+            nodes: model.node_count() as f64,
+            members: model.members.len() as f64,
+            n: (3 * model.node_count()).saturating_sub(model.support_count()) as f64,
+            ids: model.members.iter().map(|m| m.id.len() as f64).sum(),
+            h5: cfg.outputs.hdf5,
+            mcap: cfg.outputs.mcap,
+        }
+    }
+
+    /// `bytes` if that file is written.
+    fn on(yes: bool, bytes: f64) -> f64 {
+        if yes {
+            bytes
+        } else {
+            0.0
+        }
+    }
+
+    /// One recorded frame: time (and fraction), position, velocity (time stepping only),
+    /// member force and length, four energies; the MCAP scene, forces and energy.
+    fn frame(&self, dynamic: bool) -> f64 {
+        let (nodes, members) = (self.nodes, self.members);
+        let vectors = if dynamic { 6.0 } else { 3.0 };
+        Self::on(self.h5, 8.0 * (2.0 + vectors * nodes + 2.0 * members + 4.0))
+            + Self::on(self.mcap, MCAP_PER_FRAME + MCAP_PER_MEMBER * members + self.ids)
+    }
+
+    /// The partial eigensolver's sparse factorization (as Newton's) and its Krylov basis,
+    /// n × (dimension + 1) plus as much again while restarting.
+    fn partial_bytes(&self, modes: usize) -> f64 {
+        self.pattern() * 16.0 * (1.0 + SPARSE_FILL) + 2.0 * 8.0 * self.n * (krylov_dimension(modes) + 1) as f64
+    }
+
+    /// Entries of the sparse tangent (a 3 × 3 block per node and two per member) [count].
+    fn pattern(&self) -> f64 {
+        9.0 * self.nodes + 18.0 * self.members
+    }
+}
+
+impl StageEntrySpec<'_> {
+    /// The steps a stage records (and the config key that sets them, how they follow from
+    /// it, whether it is time stepping); None for a stage without steps (eigen).
+    fn recorded_steps(&self, every: usize) -> Option<(f64, &'static str, String, bool)> {
+        match self {
+            StageEntrySpec::Transient(t) => {
+                let n_steps = (t.duration / t.dt).round();
+                let how = format!("duration {} s / dt {} s = {n_steps} steps, every {every}", t.duration, t.dt);
+                Some((n_steps, "duration", how, true))
+            }
+            StageEntrySpec::Folding(f) => Some((f.steps as f64, "steps", format!("{} steps", f.steps), false)),
+            StageEntrySpec::Static(s) => {
+                // Under displacement control gravity takes its own `steps` first.
+                let n_steps = s.steps as f64 * if s.control.is_some() { 2.0 } else { 1.0 };
+                Some((n_steps, "steps", format!("{n_steps} steps"), false))
+            }
+            StageEntrySpec::Eigen(_) => None,
+        }
+    }
+}
+
 impl CaseConfig {
     /// Output and peak memory of this case on `model` (its valid model). The stage values
     /// must be valid (positive dt, duration, steps).
     pub fn estimate(&self, model: &Model) -> Estimate {
-        let nodes = model.node_count() as f64;
-        let members = model.members.len() as f64;
-        let n = (3 * model.node_count()).saturating_sub(model.support_count()) as f64;
-        let ids: f64 = model.members.iter().map(|m| m.id.len() as f64).sum();
-        let every = self.outputs.every.max(1) as f64;
-        let (h5, mcap) = (self.outputs.hdf5, self.outputs.mcap);
-        let on = |yes: bool, bytes: f64| if yes { bytes } else { 0.0 };
-        // One recorded frame: time (and fraction), position, velocity (time stepping only),
-        // member force and length, four energies; the MCAP scene, forces and energy.
-        let frame = |dynamic: bool| {
-            let vectors = if dynamic { 6.0 } else { 3.0 };
-            on(h5, 8.0 * (2.0 + vectors * nodes + 2.0 * members + 4.0)) + on(mcap, MCAP_PER_FRAME + MCAP_PER_MEMBER * members + ids)
-        };
-        let mut output = vec![Part {
-            field: "model".into(),
-            what: format!("the model and form-finding's equilibrium ({nodes} nodes, {members} members)"),
-            bytes: 2.0 * frame(false) + on(h5, H5_PER_ITEM * (nodes + members)),
-        }];
-        let mut steps = 2.0;
-        let mut frames_of = |stage: &str, field: &str, steps: f64, dynamic: bool, how: String| {
-            let frames = if dynamic {
-                (steps / every).floor() + 1.0 + f64::from(steps % every != 0.0)
-            } else {
-                steps + 1.0
-            };
-            output.push(Part {
-                field: field.into(),
-                what: format!(
-                    "{stage}: {frames} recorded frames ({how}) of {nodes} nodes and {members} members, {} each",
-                    bytes_text(frame(dynamic))
-                ),
-                bytes: frames * frame(dynamic),
-            });
-        };
+        let s = Sizes::new(self, model);
         let sections = self.stage_sections();
-        for (at, stage, spec) in &sections {
-            match spec {
-                StageEntrySpec::Transient(t) => {
-                    let n_steps = (t.duration / t.dt).round();
-                    let how = format!(
-                        "duration {} s / dt {} s = {n_steps} steps, every {}",
-                        t.duration, t.dt, self.outputs.every
-                    );
-                    frames_of(stage, &format!("{at}.duration"), n_steps, true, how);
-                    steps += n_steps;
-                }
-                StageEntrySpec::Folding(f) => {
-                    frames_of(stage, &format!("{at}.steps"), f.steps as f64, false, format!("{} steps", f.steps));
-                    steps += f.steps as f64;
-                }
-                StageEntrySpec::Static(s) => {
-                    // Under displacement control gravity takes its own `steps` first.
-                    let n_steps = s.steps as f64 * if s.control.is_some() { 2.0 } else { 1.0 };
-                    frames_of(stage, &format!("{at}.steps"), n_steps, false, format!("{n_steps} steps"));
-                    steps += n_steps;
-                }
-                StageEntrySpec::Eigen(_) => {}
-            }
-        }
+        let (mut output, steps) = self.stage_output(&s, &sections);
         // The eigen stage's solver: every mode dense, the lowest k partial.
         let eigens: Vec<&EigenSpec> = sections
             .iter()
@@ -244,27 +263,84 @@ impl CaseConfig {
             .collect();
         // Every eigen stage records its modes; their matrices are held one at a time.
         let eigen_solver = eigens.first().map(|e| e.mode_solver());
-        let eigen_partial = eigen_solver.filter(|s| s.partial(n as usize));
+        let eigen_partial = eigen_solver.filter(|m| m.partial(s.n as usize));
         if eigen_solver.is_some() {
             // Mode shapes (mode, node, xyz), ω², frequencies; MCAP has only a stage message.
-            let shapes = eigen_partial.map_or(n, |s| s.modes as f64);
+            let shapes = eigen_partial.map_or(s.n, |m| m.modes as f64);
             output.push(Part {
                 field: "eigen".into(),
-                what: format!("eigen: {shapes} mode shapes of {nodes} nodes"),
-                bytes: eigens.len() as f64 * on(h5, 8.0 * shapes * (3.0 * nodes + 3.0)),
+                what: format!("eigen: {shapes} mode shapes of {} nodes", s.nodes),
+                bytes: eigens.len() as f64 * Sizes::on(s.h5, 8.0 * shapes * (3.0 * s.nodes + 3.0)),
             });
         }
-
         // Memory: the stages run one after another, so the peak is the largest stage's
         // matrices on top of what every stage holds.
-        let newton = match self.newton.linear_solver {
+        let largest_frame = s.frame(true).max(s.frame(false));
+        let buffers = Part {
+            field: "model".into(),
+            what: format!("buffers of {} nodes and {} members, and the output writers", s.nodes, s.members),
+            bytes: MEMORY_PER_NODE * s.nodes
+                + MEMORY_PER_MEMBER * s.members
+                + Sizes::on(s.h5 || s.mcap, WRITER_FIXED + WRITER_BLOCKS * largest_frame.max(1e6)),
+        };
+        let largest = |parts: Vec<Part>| parts.into_iter().max_by(|a, b| a.bytes.total_cmp(&b.bytes)).unwrap_or_default();
+        let output_total = output.iter().map(|p| p.bytes).sum();
+        let stage = largest(self.stage_memory(&s, eigen_solver.is_some().then_some(eigen_partial)));
+        let memory = buffers.bytes + stage.bytes;
+        let memory_part = largest(vec![stage, buffers]);
+        Estimate {
+            output: output_total,
+            output_part: largest(output),
+            memory,
+            memory_part,
+            work: steps * s.n.max(1.0),
+        }
+    }
+
+    /// The output of the model record and of each stage's recorded frames, and the steps
+    /// of every stage (form-finding and the eigen analysis one each).
+    fn stage_output(&self, s: &Sizes, sections: &[Section]) -> (Vec<Part>, f64) {
+        let (nodes, members) = (s.nodes, s.members);
+        let every = self.outputs.every.max(1) as f64;
+        let mut output = vec![Part {
+            field: "model".into(),
+            what: format!("the model and form-finding's equilibrium ({nodes} nodes, {members} members)"),
+            bytes: 2.0 * s.frame(false) + Sizes::on(s.h5, H5_PER_ITEM * (nodes + members)),
+        }];
+        let mut steps = 2.0;
+        for (at, stage, spec) in sections {
+            let Some((n_steps, key, how, dynamic)) = spec.recorded_steps(self.outputs.every) else {
+                continue;
+            };
+            let frames = if dynamic {
+                (n_steps / every).floor() + 1.0 + f64::from(n_steps % every != 0.0)
+            } else {
+                n_steps + 1.0
+            };
+            output.push(Part {
+                field: format!("{at}.{key}"),
+                what: format!(
+                    "{stage}: {frames} recorded frames ({how}) of {nodes} nodes and {members} members, {} each",
+                    bytes_text(s.frame(dynamic))
+                ),
+                bytes: frames * s.frame(dynamic),
+            });
+            steps += n_steps;
+        }
+        (output, steps)
+    }
+
+    /// What each stage holds at its peak: Newton's tangent and factor, the stability
+    /// check's matrices, and the eigen stage's (`eigen`: its partial solver, if it uses
+    /// one; None without an eigen stage).
+    fn stage_memory(&self, s: &Sizes, eigen: Option<Option<ModeSolver>>) -> Vec<Part> {
+        let n = s.n;
+        let dense_newton = match self.newton.linear_solver {
             LinearSolverChoice::Dense => true,
             LinearSolverChoice::Sparse => false,
             LinearSolverChoice::Auto => n <= DENSE_LIMIT as f64,
         };
-        // Entries of the sparse tangent (a 3 × 3 block per node and two per member) [count].
-        let pattern = 9.0 * nodes + 18.0 * members;
-        let solver = if newton {
+        let solver = if dense_newton {
             Part {
                 field: "newton.linear_solver".into(),
                 what: format!("Newton's dense tangent and its factor on {n} free DOF (2 n² × 8 B)"),
@@ -274,66 +350,42 @@ impl CaseConfig {
             Part {
                 field: "model".into(),
                 what: format!("Newton's sparse tangent on {n} free DOF, its factor taken as {SPARSE_FILL}× the pattern"),
-                bytes: pattern * 16.0 * (1.0 + SPARSE_FILL),
+                bytes: s.pattern() * 16.0 * (1.0 + SPARSE_FILL),
             }
         };
-        // The partial eigensolver holds a sparse factorization (as Newton's) and its
-        // Krylov basis, n × (dimension + 1) plus as much again while restarting.
-        let partial_bytes = |modes: usize| pattern * 16.0 * (1.0 + SPARSE_FILL) + 2.0 * 8.0 * n * (krylov_dimension(modes) + 1) as f64;
-        let stability = |stage: &str| {
-            if ModeSolver::lowest(1).partial(n as usize) {
-                Part {
-                    field: "model".into(),
-                    what: format!("{stage}: the stability check's sparse factorization and Lanczos basis on {n} free DOF"),
-                    bytes: partial_bytes(1),
-                }
-            } else {
-                Part {
-                    field: "model".into(),
-                    what: format!("{stage}: the stability check's dense K_T and its eigen decomposition on {n} free DOF (5 n² × 8 B)"),
-                    bytes: STABILITY_MATRICES * dense(n),
-                }
+        let stability = if ModeSolver::lowest(1).partial(n as usize) {
+            Part {
+                field: "model".into(),
+                what: format!("substitution: the stability check's sparse factorization and Lanczos basis on {n} free DOF"),
+                bytes: s.partial_bytes(1),
+            }
+        } else {
+            Part {
+                field: "model".into(),
+                what: format!("substitution: the stability check's dense K_T and its eigen decomposition on {n} free DOF (5 n² × 8 B)"),
+                bytes: STABILITY_MATRICES * dense(n),
             }
         };
-        let mut stages = vec![solver, stability("substitution")];
-        match (eigen_solver, eigen_partial) {
-            (Some(_), Some(p)) => stages.push(Part {
+        let mut stages = vec![solver, stability];
+        match eigen {
+            Some(Some(p)) => stages.push(Part {
                 field: "eigen".into(),
                 what: format!(
                     "eigen: the partial solver's sparse factorization, Lanczos basis and {} mode shapes on {n} free DOF",
                     p.modes
                 ),
-                bytes: partial_bytes(p.modes),
+                bytes: s.partial_bytes(p.modes),
             }),
-            (Some(_), None) => stages.push(Part {
+            Some(None) => stages.push(Part {
                 field: "eigen".into(),
                 what: format!(
                     "eigen: dense K_T, the mass-scaled matrix, its eigen decomposition and the mode shapes on {n} free DOF (6 n² × 8 B)"
                 ),
                 bytes: EIGEN_MATRICES * dense(n),
             }),
-            (None, _) => {}
+            None => {}
         }
-        let largest_frame = frame(true).max(frame(false));
-        let buffers = Part {
-            field: "model".into(),
-            what: format!("buffers of {nodes} nodes and {members} members, and the output writers"),
-            bytes: MEMORY_PER_NODE * nodes
-                + MEMORY_PER_MEMBER * members
-                + on(h5 || mcap, WRITER_FIXED + WRITER_BLOCKS * largest_frame.max(1e6)),
-        };
-        let largest = |parts: Vec<Part>| parts.into_iter().max_by(|a, b| a.bytes.total_cmp(&b.bytes)).unwrap_or_default();
-        let output_total = output.iter().map(|p| p.bytes).sum();
-        let stage = largest(stages);
-        let memory = buffers.bytes + stage.bytes;
-        let memory_part = largest(vec![stage, buffers]);
-        Estimate {
-            output: output_total,
-            output_part: largest(output),
-            memory,
-            memory_part,
-            work: steps * n.max(1.0),
-        }
+        stages
     }
 }
 
