@@ -3,7 +3,7 @@
 //! SIGINT or SIGTERM).
 
 use clap::{CommandFactory, Parser, Subcommand};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tsim::config::{bytes_text, json_schema, ConfigError};
 use tsim::run::{
@@ -136,7 +136,7 @@ fn parse_shard(text: &str) -> Result<Shard, String> {
 }
 
 /// `tsim collect`: a sharded run directory is merged first.
-fn collect_command(run_dir: &std::path::Path) -> ExitCode {
+fn collect_command(run_dir: &Path) -> ExitCode {
     match Plan::read(run_dir) {
         Ok(Some(_)) => {}
         Ok(None) => return collect_unsharded(run_dir),
@@ -252,64 +252,12 @@ fn main() -> ExitCode {
             allow_large,
             sbatch,
         }),
-        Command::Schema { out } => {
-            let schema = json_schema();
-            match out {
-                None => print!("{schema}"),
-                Some(path) => {
-                    if let Err(e) = std::fs::write(&path, schema) {
-                        eprintln!("error: cannot write {}: {e}", path.display());
-                        return ExitCode::from(2);
-                    }
-                }
-            }
-            ExitCode::SUCCESS
-        }
+        Command::Schema { out } => schema_command(out.as_deref()),
         Command::Completions { shell } => {
             clap_complete::generate(shell, &mut Cli::command(), "tsim", &mut std::io::stdout());
             ExitCode::SUCCESS
         }
-        Command::Check { config, out, allow_large } => match load(&config, allow_large) {
-            Ok(Expanded { name, cases, limits }) => {
-                let dir = out.join(&name);
-                println!("{}: {} case(s) into {}/", config.display(), cases.len(), dir.display());
-                let width = cases.iter().map(|c| c.id.len()).max().unwrap_or(0);
-                let mut counts = std::collections::BTreeMap::new();
-                for c in &cases {
-                    let state = OnDisk::of(c, &dir.join(&c.id)).as_str();
-                    *counts.entry(state).or_insert(0) += 1;
-                    println!(
-                        "  {:width$}  {state:10}  output {}, peak memory {}",
-                        c.id,
-                        bytes_text(c.estimate.output),
-                        bytes_text(c.estimate.memory)
-                    );
-                }
-                let counts: Vec<String> = counts.iter().map(|(s, n)| format!("{n} {s}")).collect();
-                println!("cases: {} (a run reuses the complete ones)", counts.join(", "));
-                let output: f64 = cases.iter().map(|c| c.estimate.output).sum();
-                let memory = cases.iter().map(|c| c.estimate.memory).fold(0.0, f64::max);
-                let limit = |b: f64| {
-                    if b.is_finite() {
-                        bytes_text(b)
-                    } else {
-                        "none: --allow-large".into()
-                    }
-                };
-                println!(
-                    "estimated: output {} in all, uncompressed (limit {}); peak memory {} per case (limit {}; cases running at once add up)",
-                    bytes_text(output),
-                    limit(limits.max_output),
-                    bytes_text(memory),
-                    limit(limits.max_memory)
-                );
-                ExitCode::SUCCESS
-            }
-            Err(e) => {
-                report(&e);
-                ExitCode::from(2)
-            }
-        },
+        Command::Check { config, out, allow_large } => check_command(&config, &out, allow_large),
         Command::Run {
             config,
             out,
@@ -320,13 +268,6 @@ fn main() -> ExitCode {
             allow_large,
             shard,
         } => {
-            let Expanded { name, cases, .. } = match load(&config, allow_large) {
-                Ok(x) => x,
-                Err(e) => {
-                    report(&e);
-                    return ExitCode::from(2);
-                }
-            };
             let opts = RunOptions {
                 out,
                 jobs: jobs.unwrap_or_else(default_jobs),
@@ -335,28 +276,100 @@ fn main() -> ExitCode {
                 only,
                 shard,
             };
-            if let Err(e) = install_interrupt() {
-                eprintln!("warning: cannot handle SIGINT/SIGTERM ({e}); an interrupted run leaves its files marked running");
+            run_command(&config, allow_large, &opts)
+        }
+    }
+}
+
+/// `tsim schema`: the config's JSON Schema to stdout or `out`.
+fn schema_command(out: Option<&Path>) -> ExitCode {
+    let schema = json_schema();
+    match out {
+        None => print!("{schema}"),
+        Some(path) => {
+            if let Err(e) = std::fs::write(path, schema) {
+                eprintln!("error: cannot write {}: {e}", path.display());
+                return ExitCode::from(2);
             }
-            match run(&name, &cases, &opts) {
-                Ok(outcomes) => {
-                    let failed = outcomes.iter().filter(|o| o.failed()).count();
-                    let tally = Tally(&outcomes);
-                    eprintln!("{}; results in {}", tally.line(), opts.out.join(&name).display());
-                    if interrupted() {
-                        eprintln!("{}", tally.interrupted());
-                        ExitCode::from(EXIT_INTERRUPTED)
-                    } else if failed > 0 {
-                        ExitCode::from(1)
-                    } else {
-                        ExitCode::SUCCESS
-                    }
-                }
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    ExitCode::from(1)
-                }
+        }
+    }
+    ExitCode::SUCCESS
+}
+
+/// `tsim check`: each case's id, what is on disk for it and its estimates, then the run's.
+fn check_command(config: &Path, out: &Path, allow_large: bool) -> ExitCode {
+    let Expanded { name, cases, limits } = match load(config, allow_large) {
+        Ok(x) => x,
+        Err(e) => {
+            report(&e);
+            return ExitCode::from(2);
+        }
+    };
+    let dir = out.join(&name);
+    println!("{}: {} case(s) into {}/", config.display(), cases.len(), dir.display());
+    let width = cases.iter().map(|c| c.id.len()).max().unwrap_or(0);
+    let mut counts = std::collections::BTreeMap::new();
+    for c in &cases {
+        let state = OnDisk::of(c, &dir.join(&c.id)).as_str();
+        *counts.entry(state).or_insert(0) += 1;
+        println!(
+            "  {:width$}  {state:10}  output {}, peak memory {}",
+            c.id,
+            bytes_text(c.estimate.output),
+            bytes_text(c.estimate.memory)
+        );
+    }
+    let counts: Vec<String> = counts.iter().map(|(s, n)| format!("{n} {s}")).collect();
+    println!("cases: {} (a run reuses the complete ones)", counts.join(", "));
+    let output: f64 = cases.iter().map(|c| c.estimate.output).sum();
+    let memory = cases.iter().map(|c| c.estimate.memory).fold(0.0, f64::max);
+    let limit = |b: f64| {
+        if b.is_finite() {
+            bytes_text(b)
+        } else {
+            "none: --allow-large".into()
+        }
+    };
+    println!(
+        "estimated: output {} in all, uncompressed (limit {}); peak memory {} per case (limit {}; cases running at once add up)",
+        bytes_text(output),
+        limit(limits.max_output),
+        bytes_text(memory),
+        limit(limits.max_memory)
+    );
+    ExitCode::SUCCESS
+}
+
+/// `tsim run`: every case of `config` (or this shard's); exit 1 when one failed, 130 when
+/// interrupted.
+fn run_command(config: &Path, allow_large: bool, opts: &RunOptions) -> ExitCode {
+    let Expanded { name, cases, .. } = match load(config, allow_large) {
+        Ok(x) => x,
+        Err(e) => {
+            report(&e);
+            return ExitCode::from(2);
+        }
+    };
+    if let Err(e) = install_interrupt() {
+        eprintln!("warning: cannot handle SIGINT/SIGTERM ({e}); an interrupted run leaves its files marked running");
+    }
+    match run(&name, &cases, opts) {
+        Ok(outcomes) => {
+            let failed = outcomes.iter().filter(|o| o.failed()).count();
+            let tally = Tally(&outcomes);
+            eprintln!("{}; results in {}", tally.line(), opts.out.join(&name).display());
+            if interrupted() {
+                eprintln!("{}", tally.interrupted());
+                ExitCode::from(EXIT_INTERRUPTED)
+            } else if failed > 0 {
+                ExitCode::from(1)
+            } else {
+                ExitCode::SUCCESS
             }
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(1)
         }
     }
 }
