@@ -72,6 +72,97 @@ fn member_and_energy_columns(g: &Dims, actuated: bool, chunk: usize) -> Result<V
     Ok(columns)
 }
 
+/// The `node`, `member`, `xyz` and `support` dimensions with their labels, and the
+/// support's auxiliary coordinates (node, axis, kind of each constrained direction).
+fn dimensions(g: &mut Dims, constraints: &Constraints, ids: Ids, record: &ModelRecord) -> Result<(), Error> {
+    g.labels("node", ids.nodes, "node id")?;
+    g.labels("member", ids.members, "member id")?;
+    g.labels("xyz", &AXES, "coordinate axis")?;
+    g.labels(
+        "support",
+        &constraints.labels(record.model),
+        "constrained direction (node.axis): a support, or prescribed by the stage",
+    )?;
+    let support_node: Vec<&str> = constraints.0.iter().map(|c| ids.nodes[c.node].as_str()).collect();
+    g.var(
+        "support_node",
+        &["support"],
+        &varlen(&support_node)?,
+        "1",
+        "node id of the constrained direction",
+    )?;
+    let support_axis: Vec<&str> = constraints.0.iter().map(|c| AXES[c.axis]).collect();
+    g.var(
+        "support_axis",
+        &["support"],
+        &varlen(&support_axis)?,
+        "1",
+        "axis of the constrained direction",
+    )?;
+    let kind: Vec<&str> = constraints
+        .0
+        .iter()
+        .map(|c| if c.prescribed { "prescribed" } else { "support" })
+        .collect();
+    g.var(
+        "support_kind",
+        &["support"],
+        &varlen(&kind)?,
+        "1",
+        "support of the model, or direction prescribed by the stage",
+    )
+}
+
+/// The streamed applied loads, reactions and equilibrium error, in that order.
+fn load_columns(g: &Dims, chunk: usize) -> Result<Vec<Dataset>, Error> {
+    let mut columns = Vec::new();
+    for (name, dims, long_name) in [
+        (
+            "applied_load",
+            &["node", "xyz"][..],
+            "external load applied on the node (dead load, weight, stage loads)",
+        ),
+        (
+            "reaction",
+            &["support"],
+            "reaction at the constrained direction (force on the node)",
+        ),
+        (
+            "equilibrium_error",
+            &[],
+            "norm of sum of reactions and applied loads less inertia and mass-proportional damping",
+        ),
+    ] {
+        columns.push(g.streamed(name, dims, chunk, "N", long_name)?);
+    }
+    Ok(columns)
+}
+
+/// The `mode` dimension and the streamed lowest `modes` eigenvalues and lowest mode of a
+/// folding path.
+fn mode_columns(g: &mut Dims, modes: usize, chunk: usize) -> Result<[Dataset; 2], Error> {
+    let numbers: Vec<i64> = (1..=modes as i64).collect();
+    g.coord("mode", &numbers, "1", "mode number, 1 = lowest")?;
+    let omega2 = g.streamed(
+        "mode_omega2",
+        &["mode"],
+        chunk,
+        "rad2 s-2",
+        "lowest eigenvalues ω² of K_T φ = ω² M φ, prescribed directions held",
+    )?;
+    let lowest = g.streamed(
+        "lowest_mode",
+        &["node", "xyz"],
+        chunk,
+        "m kg-1/2",
+        "mass-normalised lowest mode (zero at constrained directions)",
+    )?;
+    for ds in [&omega2, &lowest] {
+        str_attr(ds, "coordinates", "fraction")?;
+    }
+    Ok([omega2, lowest])
+}
+
 impl Series {
     /// Column order, used by [`Series::push`]: time, [fraction], position, [velocity],
     /// member_force, member_length, kinetic, strain, damping, external, [rest_length,
@@ -83,7 +174,6 @@ impl Series {
     /// coordinates `support_node`, `support_axis` and `support_kind` (`support` or
     /// `prescribed`).
     pub(super) fn create(group: Group, layout: &StageLayout, ids: Ids, record: &ModelRecord, chunk: usize) -> Result<Self, Error> {
-        let (node_ids, member_ids) = (ids.nodes, ids.members);
         let constraints = layout.constraints.clone();
         let folding = layout.stage.is_static();
         let mut g = Dims::new(group);
@@ -94,42 +184,7 @@ impl Series {
         };
         let time = g.streamed("time", &[], chunk, units, long_name)?;
         g.scale("time", time.clone())?;
-        g.labels("node", node_ids, "node id")?;
-        g.labels("member", member_ids, "member id")?;
-        g.labels("xyz", &AXES, "coordinate axis")?;
-        g.labels(
-            "support",
-            &constraints.labels(record.model),
-            "constrained direction (node.axis): a support, or prescribed by the stage",
-        )?;
-        let support_node: Vec<&str> = constraints.0.iter().map(|c| node_ids[c.node].as_str()).collect();
-        g.var(
-            "support_node",
-            &["support"],
-            &varlen(&support_node)?,
-            "1",
-            "node id of the constrained direction",
-        )?;
-        let support_axis: Vec<&str> = constraints.0.iter().map(|c| AXES[c.axis]).collect();
-        g.var(
-            "support_axis",
-            &["support"],
-            &varlen(&support_axis)?,
-            "1",
-            "axis of the constrained direction",
-        )?;
-        let kind: Vec<&str> = constraints
-            .0
-            .iter()
-            .map(|c| if c.prescribed { "prescribed" } else { "support" })
-            .collect();
-        g.var(
-            "support_kind",
-            &["support"],
-            &varlen(&kind)?,
-            "1",
-            "support of the model, or direction prescribed by the stage",
-        )?;
+        dimensions(&mut g, &constraints, ids, record)?;
         let mut columns = vec![time];
         if folding {
             let what = match layout.stage.kind {
@@ -144,25 +199,7 @@ impl Series {
         }
         let actuated = layout.actuated;
         columns.extend(member_and_energy_columns(&g, actuated, chunk)?);
-        for (name, dims, long_name) in [
-            (
-                "applied_load",
-                &["node", "xyz"][..],
-                "external load applied on the node (dead load, weight, stage loads)",
-            ),
-            (
-                "reaction",
-                &["support"],
-                "reaction at the constrained direction (force on the node)",
-            ),
-            (
-                "equilibrium_error",
-                &[],
-                "norm of sum of reactions and applied loads less inertia and mass-proportional damping",
-            ),
-        ] {
-            columns.push(g.streamed(name, dims, chunk, "N", long_name)?);
-        }
+        columns.extend(load_columns(&g, chunk)?);
         // CF: makes xarray list `fraction` and the support labels as (non-dimension)
         // coordinates.
         let reaction = columns.len() - 2;
@@ -177,26 +214,7 @@ impl Series {
         }
         let modes = layout.path_modes;
         if modes > 0 {
-            let numbers: Vec<i64> = (1..=modes as i64).collect();
-            g.coord("mode", &numbers, "1", "mode number, 1 = lowest")?;
-            let omega2 = g.streamed(
-                "mode_omega2",
-                &["mode"],
-                chunk,
-                "rad2 s-2",
-                "lowest eigenvalues ω² of K_T φ = ω² M φ, prescribed directions held",
-            )?;
-            let lowest = g.streamed(
-                "lowest_mode",
-                &["node", "xyz"],
-                chunk,
-                "m kg-1/2",
-                "mass-normalised lowest mode (zero at constrained directions)",
-            )?;
-            for ds in [&omega2, &lowest] {
-                str_attr(ds, "coordinates", "fraction")?;
-            }
-            columns.extend([omega2, lowest]);
+            columns.extend(mode_columns(&mut g, modes, chunk)?);
         }
         let (clearance, events) = clearance_columns(&mut g, folding, chunk)?;
         columns.extend(clearance);
