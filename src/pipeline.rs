@@ -177,40 +177,8 @@ fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSumma
     }];
     let mut rayleigh: Vec<Rayleigh> = Vec::with_capacity(plan.len());
     for planned in &plan {
-        let start = &reached[planned.from];
-        structure.dead_load.clone_from(&start.dead_load);
-        let state = start.state.clone();
-        let mut dead_load = start.dead_load.clone();
-        let (end, figures) = match &planned.analysis {
-            Planned::Static(stage) => {
-                let (end, statics) = stage.run(&structure, state, &settings, recorder)?;
-                dead_load = stage.dead_load(&dead_load, statics.load_factor);
-                (end, StageSummary::Static(statics))
-            }
-            Planned::Eigen(stage) => {
-                let (end, eigen) = stage.run(&structure, state, &settings, recorder)?;
-                (end, StageSummary::Eigen(eigen))
-            }
-            Planned::Transient {
-                stage,
-                rayleigh_from,
-                compare_to,
-            } => {
-                let stage = Transient {
-                    rayleigh: rayleigh_from.map_or_else(Rayleigh::default, |k| rayleigh[k]),
-                    ..stage.clone()
-                };
-                // The shape error at every step, for the time it comes within 1 % of the compared shape.
-                let compared = compare_to.map(|k| &reached[k].state);
-                let (end, transient) = stage.run_towards(&structure, state, &settings, recorder, compared.map(|s| &s.positions[..]))?;
-                let figures = TransientStageSummary::new(transient, &end, compared);
-                (end, StageSummary::Transient(figures))
-            }
-            Planned::Folding(stage) => {
-                let (end, fold) = stage.run(&structure, state, &settings, recorder)?;
-                (end, StageSummary::Folding(fold))
-            }
-        };
+        structure.dead_load.clone_from(&reached[planned.from].dead_load);
+        let (end, figures, dead_load) = run_planned(planned, &structure, &reached, &rayleigh, &settings, recorder)?;
         rayleigh.push(match &figures {
             StageSummary::Eigen(e) => e.rayleigh(),
             _ => Rayleigh::default(),
@@ -221,6 +189,53 @@ fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSumma
         reached.push(Reached { state: end, dead_load });
     }
     Ok(summary)
+}
+
+/// One planned stage from its start among `reached` (the states so far), damped by the
+/// α, β of an earlier eigen stage (`rayleigh`, by plan index) where it says so: the state
+/// it ends in, its figures and the dead load that holds that state.
+fn run_planned(
+    planned: &PlannedStage,
+    structure: &Structure,
+    reached: &[Reached],
+    rayleigh: &[Rayleigh],
+    settings: &Settings,
+    recorder: &mut dyn Recorder,
+) -> Result<(State, StageSummary, Vec<Vector3<f64>>)> {
+    let start = &reached[planned.from];
+    let state = start.state.clone();
+    let mut dead_load = start.dead_load.clone();
+    let (end, figures) = match &planned.analysis {
+        Planned::Static(stage) => {
+            let (end, statics) = stage.run(structure, state, settings, recorder)?;
+            dead_load = stage.dead_load(&dead_load, statics.load_factor);
+            (end, StageSummary::Static(statics))
+        }
+        Planned::Eigen(stage) => {
+            let (end, eigen) = stage.run(structure, state, settings, recorder)?;
+            (end, StageSummary::Eigen(eigen))
+        }
+        Planned::Transient {
+            stage,
+            rayleigh_from,
+            compare_to,
+        } => {
+            let stage = Transient {
+                rayleigh: rayleigh_from.map_or_else(Rayleigh::default, |k| rayleigh[k]),
+                ..stage.clone()
+            };
+            // The shape error at every step, for the time it comes within 1 % of the compared shape.
+            let compared = compare_to.map(|k| &reached[k].state);
+            let (end, transient) = stage.run_towards(structure, state, settings, recorder, compared.map(|s| &s.positions[..]))?;
+            let figures = TransientStageSummary::new(transient, &end, compared);
+            (end, StageSummary::Transient(figures))
+        }
+        Planned::Folding(stage) => {
+            let (end, fold) = stage.run(structure, state, settings, recorder)?;
+            (end, StageSummary::Folding(fold))
+        }
+    };
+    Ok((end, figures, dead_load))
 }
 
 /// What the outputs are told of the stages before any runs: each planned stage, and for
