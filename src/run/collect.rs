@@ -38,15 +38,46 @@ pub fn collect(dir: &Path) -> Result<Collected, String> {
 
 /// Collects the cases `outcomes` of the run directory `dir`.
 pub fn collect_outcomes(dir: &Path, outcomes: &[CaseOutcome]) -> Result<Collected, String> {
-    let mut c = Collection {
-        ids: outcomes.iter().map(|o| o.id.clone()).collect(),
-        ..Default::default()
-    };
-    // The swept axes as coordinates: numbers when every label of the axis is one.
     let axes: Vec<String> = outcomes
         .first()
         .map(|o| o.params.iter().map(|(a, _)| a.clone()).collect())
         .unwrap_or_default();
+    let mut missing = Vec::new();
+    let histories = energy_histories(dir, outcomes, &mut missing);
+    let c = Collection {
+        ids: outcomes.iter().map(|o| o.id.clone()).collect(),
+        coords: axis_coordinates(&axes, outcomes),
+        vars: summary_variables(outcomes),
+        histories,
+        attrs: vec![
+            ("tsim_version".into(), env!("CARGO_PKG_VERSION").into()),
+            ("run_dir".into(), dir.display().to_string()),
+            ("units".into(), "SI (m, N, kg, s)".into()),
+            ("sweep_axes".into(), axes.join(" ")),
+            (
+                "missing".into(),
+                missing
+                    .iter()
+                    .map(|(id, why)| format!("{id}: {why}"))
+                    .collect::<Vec<_>>()
+                    .join("\n"),
+            ),
+        ],
+    };
+    let path = dir.join("collected.h5");
+    let partial = dir.join(".collected.h5.partial");
+    write(&partial, &c).map_err(|e| format!("cannot write {}: {e}", partial.display()))?;
+    std::fs::rename(&partial, &path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    Ok(Collected {
+        path,
+        cases: outcomes.len(),
+        missing,
+    })
+}
+
+/// The swept axes as coordinates: numbers when every label of the axis is one.
+fn axis_coordinates(axes: &[String], outcomes: &[CaseOutcome]) -> Vec<Variable> {
+    let mut coords = Vec::new();
     for (k, axis) in axes.iter().enumerate() {
         let labels: Vec<&str> = outcomes.iter().map(|o| o.params.get(k).map_or("", |(_, l)| l.as_str())).collect();
         let numeric = numeric_labels(labels.iter().copied());
@@ -56,15 +87,20 @@ pub fn collect_outcomes(dir: &Path, outcomes: &[CaseOutcome]) -> Result<Collecte
         } else {
             Column::Texts(labels.iter().map(|l| l.to_string()).collect())
         };
-        c.coords.push(Variable {
+        coords.push(Variable {
             name: axis.clone(),
             units: "1".into(),
             long_name: format!("swept axis `{axis}` (its value labels)"),
             values,
         });
     }
-    // The scalars of summary.csv.
+    coords
+}
+
+/// The scalars of summary.csv, one variable per column.
+fn summary_variables(outcomes: &[CaseOutcome]) -> Vec<Variable> {
     let rows: Vec<Vec<Cell>> = outcomes.iter().map(cells).collect();
+    let mut vars = Vec::new();
     for (k, (name, unit)) in COLUMNS.iter().enumerate() {
         let values = match rows.first().map(|r| &r[k]) {
             Some(Cell::Text(_)) => Column::Texts(
@@ -84,15 +120,19 @@ pub fn collect_outcomes(dir: &Path, outcomes: &[CaseOutcome]) -> Result<Collecte
                     .collect(),
             ),
         };
-        c.vars.push(Variable {
+        vars.push(Variable {
             name: name.to_string(),
             units: if unit.is_empty() { "1".into() } else { unit.to_string() },
             long_name: format!("summary.csv column `{name}` (docs/outputs.md)"),
             values,
         });
     }
-    // The energy histories of the complete cases.
-    let mut missing = Vec::new();
+    vars
+}
+
+/// The energy histories of `STAGES` for every case, empty for a case without complete
+/// results, which is added to `missing` with the reason.
+fn energy_histories(dir: &Path, outcomes: &[CaseOutcome], missing: &mut Vec<(String, String)>) -> Vec<History> {
     let mut histories: Vec<History> = STAGES
         .iter()
         .map(|s| History {
@@ -132,28 +172,5 @@ pub fn collect_outcomes(dir: &Path, outcomes: &[CaseOutcome]) -> Result<Collecte
             h.strain.push(strain);
         }
     }
-    c.histories = histories;
-    c.attrs = vec![
-        ("tsim_version".into(), env!("CARGO_PKG_VERSION").into()),
-        ("run_dir".into(), dir.display().to_string()),
-        ("units".into(), "SI (m, N, kg, s)".into()),
-        ("sweep_axes".into(), axes.join(" ")),
-        (
-            "missing".into(),
-            missing
-                .iter()
-                .map(|(id, why)| format!("{id}: {why}"))
-                .collect::<Vec<_>>()
-                .join("\n"),
-        ),
-    ];
-    let path = dir.join("collected.h5");
-    let partial = dir.join(".collected.h5.partial");
-    write(&partial, &c).map_err(|e| format!("cannot write {}: {e}", partial.display()))?;
-    std::fs::rename(&partial, &path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-    Ok(Collected {
-        path,
-        cases: outcomes.len(),
-        missing,
-    })
+    histories
 }

@@ -150,53 +150,14 @@ pub fn expand(text: &str, origin: &str, allow_large: bool) -> Result<Expanded, C
     // The largest output part of any case: (case index, its chosen values, the part).
     let mut largest: Option<(usize, Vec<usize>, Part)> = None;
     for flat in 0..total {
-        // Mixed-radix digits of `flat`, last axis fastest.
-        let mut rem = flat;
-        let mut chosen = vec![0; axes.len()];
-        for (a, axis) in axes.iter().enumerate().rev() {
-            chosen[a] = rem % axis.values.len();
-            rem /= axis.values.len();
-        }
-        let params: Vec<(String, String)> = axes
-            .iter()
-            .zip(&chosen)
-            .map(|(a, &i)| (a.name.clone(), a.values[i].label.clone()))
-            .collect();
+        let chosen = digits(flat, &axes);
+        let params = labels(&axes, &chosen);
         match sweep.case(&chosen, &base_value) {
             Ok((config, estimate)) => {
-                let id = if params.is_empty() {
-                    config.name.clone()
-                } else {
-                    params.iter().map(|(a, l)| format!("{a}-{l}")).collect::<Vec<_>>().join("_")
-                };
-                let yaml = serde_saphyr::to_string(&config).map_err(|e| ConfigError::Io {
-                    file: origin.into(),
-                    message: e.to_string(),
-                })?;
                 if largest.as_ref().is_none_or(|(_, _, p)| estimate.output_part.bytes > p.bytes) {
                     largest = Some((cases.len(), chosen.clone(), estimate.output_part.clone()));
                 }
-                let mut attrs: Vec<(String, ParamValue)> = params
-                    .iter()
-                    .zip(&numeric)
-                    .map(|((axis, label), &numeric)| (format!("sweep.{axis}"), label_value(label, numeric)))
-                    .collect();
-                for (a, &i) in chosen.iter().enumerate() {
-                    for (path, v) in &axes[a].values[i].set {
-                        // Two axes setting one path: the later wins, as in the case config.
-                        let name = format!("set.{path}");
-                        attrs.retain(|(n, _)| *n != name);
-                        attrs.push((name, json_value(v)));
-                    }
-                }
-                cases.push(Case {
-                    id,
-                    params,
-                    config,
-                    yaml,
-                    estimate,
-                    attrs,
-                });
+                cases.push(sweep.named(&chosen, params, config, estimate, &numeric)?);
             }
             Err(case_errors) => {
                 let name = params.iter().map(|(a, l)| format!("{a}={l}")).collect::<Vec<_>>().join(", ");
@@ -210,27 +171,8 @@ pub fn expand(text: &str, origin: &str, allow_large: bool) -> Result<Expanded, C
             }
         }
     }
-    let output: f64 = cases.iter().map(|c| c.estimate.output).sum();
-    if let (true, Some((k, chosen, part))) = (errors.is_empty() && output > limits.max_output, largest) {
-        let line = sweep
-            .setter_line(&chosen, &part.field)
-            .or_else(|| config::locate_line(text, &part.field))
-            .or_else(|| config::locate_line(text, "name"));
-        errors.push(ValueError {
-            file: origin.into(),
-            line,
-            field: part.field.clone(),
-            message: format!(
-                "estimated output {} (uncompressed result.h5 and replay.mcap of {} case(s)) exceeds the limit of {} per run; the largest part: case `{}`, {}: {}; record fewer steps (`outputs.every`), or {}",
-                bytes_text(output),
-                cases.len(),
-                bytes_text(limits.max_output),
-                cases[k].id,
-                part.what,
-                bytes_text(part.bytes),
-                Limits::remedy("max_output_gb")
-            ),
-        });
+    if let (true, Some((k, chosen, part))) = (errors.is_empty(), largest) {
+        errors.extend(sweep.output_error(&cases, k, &chosen, &part));
     }
     if errors.is_empty() {
         Ok(Expanded {
@@ -287,6 +229,26 @@ fn axis_errors(axes: &[SweepAxis], origin: &str, text: &str) -> Vec<ValueError> 
     errors
 }
 
+/// (axis name, value label) of each axis' `chosen` value.
+fn labels(axes: &[SweepAxis], chosen: &[usize]) -> Vec<(String, String)> {
+    axes.iter()
+        .zip(chosen)
+        .map(|(a, &i)| (a.name.clone(), a.values[i].label.clone()))
+        .collect()
+}
+
+/// The value index of each axis for the `flat`-th case: its mixed-radix digits, the last
+/// axis fastest.
+fn digits(flat: usize, axes: &[SweepAxis]) -> Vec<usize> {
+    let mut rem = flat;
+    let mut chosen = vec![0; axes.len()];
+    for (a, axis) in axes.iter().enumerate().rev() {
+        chosen[a] = rem % axis.values.len();
+        rem /= axis.values.len();
+    }
+    chosen
+}
+
 /// The sweep of a file, for building its cases and locating their errors.
 struct Sweep<'a> {
     text: &'a str,
@@ -297,6 +259,77 @@ struct Sweep<'a> {
 }
 
 impl Sweep<'_> {
+    /// The case of the `chosen` values (`params`, their axes and labels) with its id,
+    /// resolved YAML and the attributes its files carry (`sweep.<axis>`, `set.<path>`);
+    /// `numeric`: per axis, whether its labels are numbers.
+    fn named(
+        &self,
+        chosen: &[usize],
+        params: Vec<(String, String)>,
+        config: CaseConfig,
+        estimate: Estimate,
+        numeric: &[bool],
+    ) -> Result<Case, ConfigError> {
+        let id = if params.is_empty() {
+            config.name.clone()
+        } else {
+            params.iter().map(|(a, l)| format!("{a}-{l}")).collect::<Vec<_>>().join("_")
+        };
+        let yaml = serde_saphyr::to_string(&config).map_err(|e| ConfigError::Io {
+            file: self.origin.into(),
+            message: e.to_string(),
+        })?;
+        let mut attrs: Vec<(String, ParamValue)> = params
+            .iter()
+            .zip(numeric)
+            .map(|((axis, label), &numeric)| (format!("sweep.{axis}"), label_value(label, numeric)))
+            .collect();
+        for (a, &i) in chosen.iter().enumerate() {
+            for (path, v) in &self.axes[a].values[i].set {
+                // Two axes setting one path: the later wins, as in the case config.
+                let name = format!("set.{path}");
+                attrs.retain(|(n, _)| *n != name);
+                attrs.push((name, json_value(v)));
+            }
+        }
+        Ok(Case {
+            id,
+            params,
+            config,
+            yaml,
+            estimate,
+            attrs,
+        })
+    }
+
+    /// The run's output over its limit, pointed at the largest part of any case (`part`
+    /// of case `k`, its `chosen` values) and the sweep value or field that sets it; None
+    /// within the limit.
+    fn output_error(&self, cases: &[Case], k: usize, chosen: &[usize], part: &Part) -> Option<ValueError> {
+        let output: f64 = cases.iter().map(|c| c.estimate.output).sum();
+        if output <= self.limits.max_output {
+            return None;
+        }
+        let line = self
+            .setter_line(chosen, &part.field)
+            .or_else(|| config::locate_line(self.text, &part.field))
+            .or_else(|| config::locate_line(self.text, "name"));
+        Some(ValueError {
+            file: self.origin.into(),
+            line,
+            field: part.field.clone(),
+            message: format!(
+                "estimated output {} (uncompressed result.h5 and replay.mcap of {} case(s)) exceeds the limit of {} per run; the largest part: case `{}`, {}: {}; record fewer steps (`outputs.every`), or {}",
+                bytes_text(output),
+                cases.len(),
+                bytes_text(self.limits.max_output),
+                cases[k].id,
+                part.what,
+                bytes_text(part.bytes),
+                Limits::remedy("max_output_gb")
+            ),
+        })
+    }
     /// The base with the chosen value of each axis set, deserialized and validated, with
     /// its estimate. An error points at the sweep value that set its field, else at the
     /// field in the base.
