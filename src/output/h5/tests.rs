@@ -70,67 +70,80 @@ pub(in crate::output) fn drive(rec: &mut dyn Recorder, model: &Model, steps: usi
         damping_modes: &[1, 2],
         damping_ratio: &[0.02, 0.02],
     })?;
-    for StageLayout {
+    for layout in &stages[2..] {
+        drive_stage(rec, layout, &x0, &forces, steps, every)?;
+    }
+    Ok(())
+}
+
+/// Steps 0..=steps of one stepped stage of [`drive`] (`x0`: the positions at step 0).
+fn drive_stage(
+    rec: &mut dyn Recorder,
+    layout: &StageLayout,
+    x0: &[Vector3<f64>],
+    forces: &[f64],
+    steps: usize,
+    every: usize,
+) -> RecordResult {
+    let StageLayout {
         stage,
         constraints,
         actuated,
         ..
-    } in &stages[2..]
-    {
-        let is_folding = stage.kind == StageKind::Folding;
-        rec.begin_stage(stage, constraints)?;
-        for step in (0..=steps).filter(|s| s % every == 0 || *s == steps) {
-            let s = step as f64;
-            let positions: Vec<_> = x0.iter().map(|p| p + Vector3::repeat(1e-3 * s)).collect();
-            let velocities = vec![Vector3::repeat(s); n];
-            let time = if is_folding { s / steps as f64 } else { 0.01 * s };
-            let energy = Energy {
-                kinetic: s,
-                strain: 2.0 * s,
-                damping: 3.0 * s,
-                external: 4.0 * s,
-                actuation: 5.0 * s,
-            };
-            let rest = vec![1.0 - 0.001 * s; m];
-            let lengths = vec![1.0 + s; m];
-            let velocities = (!is_folding).then_some(velocities.as_slice());
-            // Struts 0 and 1 approach by 0.01 m a step; a touch is reported at the last.
-            let touch = ClearanceEvent {
-                kind: EventKind::Touch,
-                members: [0, 1],
-                step,
-                time,
-                clearance: -0.01 * s,
-            };
-            let events = if step == steps { vec![touch] } else { vec![] };
-            let nearest = Nearest {
-                clearance: -0.01 * s,
-                members: [0, 1],
-                points: [Vector3::zeros(); 2],
-                radius: 0.05,
-            };
-            rec.frame(&Frame {
-                step,
-                time,
-                positions: &positions,
-                velocities,
-                forces: &forces,
-                lengths: &lengths,
-                rest_lengths: actuated.then_some(rest.as_slice()),
-                energy,
-                applied: &vec![Vector3::new(0.0, 0.0, -s); n],
-                reactions: &(0..constraints.len()).map(|k| k as f64 + s).collect::<Vec<_>>(),
-                equilibrium_error: 1e-12 * s,
-                modes: None,
-                clearance: Some(crate::record::FrameClearance {
-                    nearest: Some(nearest),
-                    events: &events,
-                }),
-            })?;
-        }
-        rec.end_stage(stage)?;
+    } = layout;
+    let (n, m) = (x0.len(), forces.len());
+    let is_folding = stage.kind == StageKind::Folding;
+    rec.begin_stage(stage, constraints)?;
+    for step in (0..=steps).filter(|s| s % every == 0 || *s == steps) {
+        let s = step as f64;
+        let positions: Vec<_> = x0.iter().map(|p| p + Vector3::repeat(1e-3 * s)).collect();
+        let velocities = vec![Vector3::repeat(s); n];
+        let time = if is_folding { s / steps as f64 } else { 0.01 * s };
+        let energy = Energy {
+            kinetic: s,
+            strain: 2.0 * s,
+            damping: 3.0 * s,
+            external: 4.0 * s,
+            actuation: 5.0 * s,
+        };
+        let rest = vec![1.0 - 0.001 * s; m];
+        let lengths = vec![1.0 + s; m];
+        let velocities = (!is_folding).then_some(velocities.as_slice());
+        // Struts 0 and 1 approach by 0.01 m a step; a touch is reported at the last.
+        let touch = ClearanceEvent {
+            kind: EventKind::Touch,
+            members: [0, 1],
+            step,
+            time,
+            clearance: -0.01 * s,
+        };
+        let events = if step == steps { vec![touch] } else { vec![] };
+        let nearest = Nearest {
+            clearance: -0.01 * s,
+            members: [0, 1],
+            points: [Vector3::zeros(); 2],
+            radius: 0.05,
+        };
+        rec.frame(&Frame {
+            step,
+            time,
+            positions: &positions,
+            velocities,
+            forces,
+            lengths: &lengths,
+            rest_lengths: actuated.then_some(rest.as_slice()),
+            energy,
+            applied: &vec![Vector3::new(0.0, 0.0, -s); n],
+            reactions: &(0..constraints.len()).map(|k| k as f64 + s).collect::<Vec<_>>(),
+            equilibrium_error: 1e-12 * s,
+            modes: None,
+            clearance: Some(crate::record::FrameClearance {
+                nearest: Some(nearest),
+                events: &events,
+            }),
+        })?;
     }
-    Ok(())
+    rec.end_stage(stage)
 }
 
 pub(in crate::output) fn status(path: &Path) -> String {
@@ -143,22 +156,28 @@ pub(in crate::output) fn status(path: &Path) -> String {
         .to_string()
 }
 
-#[test]
-fn writes_the_layout_and_status() {
+/// The file [`drive`] writes for a 1-stage, 3-strut tower, recording steps 0, 3, 6, 9
+/// and 10 of each stepped stage, finished complete.
+fn layout_file() -> (tempfile::TempDir, std::path::PathBuf, Model) {
     let model = TowerSpec {
         struts: 3,
         stages: 1,
         ..TowerSpec::paper()
     }
     .build();
-    let (_dir, path) = temp_path("layout.h5");
+    let (dir, path) = temp_path("layout.h5");
     let mut rec = Hdf5Recorder::create(&path, "case-7", "a: 1\n").unwrap();
     // Stride 3 over steps 0..=10: the last step is not a multiple of 3.
     drive(&mut rec, &model, 10, 3).unwrap();
     assert_eq!(status(&path), "running");
     rec.finish(&Outcome::Complete).unwrap();
     assert_eq!(status(&path), "complete");
+    (dir, path, model)
+}
 
+#[test]
+fn writes_the_layout_and_status() {
+    let (_dir, path, model) = layout_file();
     let file = File::open(&path).unwrap();
     assert_eq!(
         file.attr("case_id").unwrap().read_scalar::<VarLenUnicode>().unwrap().as_str(),
@@ -169,6 +188,7 @@ fn writes_the_layout_and_status() {
         "SI (m, N, kg, s)"
     );
     let (n, m) = (6, 12);
+    assert_eq!((model.node_count(), model.members.len()), (n, m));
     assert_eq!(file.dataset("model/member_nodes").unwrap().shape(), vec![m, 2]);
     let mass = file.dataset("model/mass").unwrap();
     assert_eq!(
@@ -185,6 +205,13 @@ fn writes_the_layout_and_status() {
             .unwrap(),
         vec![1, 2]
     );
+}
+
+#[test]
+fn writes_each_stage_series() {
+    let (_dir, path, _model) = layout_file();
+    let file = File::open(&path).unwrap();
+    let (n, m) = (6, 12);
     // Steps 0, 3, 6, 9 and the last, 10.
     let time = file.dataset("free_vibration/time").unwrap().read_raw::<f64>().unwrap();
     assert_eq!(time, [0.0, 3.0, 6.0, 9.0, 10.0].map(|s| 0.01 * s));
@@ -214,6 +241,13 @@ fn writes_the_layout_and_status() {
         vec![0.0, 15.0, 30.0, 45.0, 50.0]
     );
     assert!(file.dataset("free_vibration/rest_length").is_err() && file.dataset("free_vibration/actuator_work").is_err());
+}
+
+#[test]
+fn writes_the_constrained_directions_and_clearance() {
+    let (_dir, path, model) = layout_file();
+    let file = File::open(&path).unwrap();
+    let n = model.node_count();
     // 6 supported directions, and in folding the prescribed z of the last node.
     assert_eq!(file.dataset("deployment/reaction").unwrap().shape(), vec![5, 6]);
     let reaction = file.dataset("folding/reaction").unwrap().read_raw::<f64>().unwrap();
