@@ -163,3 +163,112 @@ fn the_scan_sees_an_import_and_skips_comments_and_tests() {
     let found: Vec<String> = imports(text).into_iter().collect();
     assert_eq!(found, ["law", "model", "solve", "tsm"]);
 }
+
+/// Longest a function may be, from its `fn` line to its closing brace (issue 28): one
+/// longer than this does more than one thing, and is split where a phase ends.
+const MAX_FN_LINES: usize = 80;
+
+/// The name in a line that opens a function (`pub(crate) const fn name`), if it does.
+fn fn_name(line: &str) -> Option<String> {
+    let mut rest = line.trim_start();
+    if let Some(r) = rest.strip_prefix("pub") {
+        rest = match r.strip_prefix('(') {
+            Some(r) => r.split_once(')')?.1,
+            None => r,
+        }
+        .trim_start();
+    }
+    for qualifier in ["const ", "unsafe ", "async ", "extern \"C\" "] {
+        rest = rest.strip_prefix(qualifier).unwrap_or(rest);
+    }
+    let name: String = rest
+        .strip_prefix("fn ")?
+        .chars()
+        .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+        .collect();
+    (!name.is_empty()).then_some(name)
+}
+
+/// A line's code without its comment and the contents of its string and char literals,
+/// whose braces do not count.
+fn code_of(line: &str) -> String {
+    let chars: Vec<char> = line.chars().collect();
+    let (mut out, mut i, mut in_string) = (String::new(), 0, false);
+    while i < chars.len() {
+        let c = chars[i];
+        match (in_string, c) {
+            (true, '\\') => i += 1,
+            (true, '"') | (false, '"') => in_string = !in_string,
+            (true, _) => {}
+            (false, '/') if chars.get(i + 1) == Some(&'/') => break,
+            // '{' or '\n' (not a lifetime such as 'a)
+            (false, '\'') if chars.get(i + 2) == Some(&'\'') => i += 2,
+            (false, '\'') if chars.get(i + 1) == Some(&'\\') => {
+                i += chars[i + 2..].iter().position(|&c| c == '\'').map_or(0, |p| p + 2);
+            }
+            (false, _) => out.push(c),
+        }
+        i += 1;
+    }
+    out
+}
+
+/// (name, first line, lines) of each function of `text` longer than `max` lines.
+fn long_functions(text: &str, max: usize) -> Vec<(String, usize, usize)> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::new();
+    for (i, line) in lines.iter().enumerate() {
+        let Some(name) = fn_name(line) else { continue };
+        let (mut depth, mut opened, mut end) = (0_i64, false, i);
+        for (j, l) in lines.iter().enumerate().skip(i) {
+            let code = code_of(l);
+            for c in code.chars() {
+                match c {
+                    '{' => (depth, opened) = (depth + 1, true),
+                    '}' => depth -= 1,
+                    _ => {}
+                }
+            }
+            end = j;
+            // Closed, or a declaration without a body (a trait's method, an extern fn).
+            if (opened && depth == 0) || (!opened && code.trim_end().ends_with(';')) {
+                break;
+            }
+        }
+        if end - i + 1 > max {
+            out.push((name, i + 1, end - i + 1));
+        }
+    }
+    out
+}
+
+#[test]
+fn no_function_is_over_80_lines() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    for dir in ["src", "crates/tsim-core/src", "examples", "tests", "benches"] {
+        if root.join(dir).is_dir() {
+            rust_files(&root.join(dir), &mut files);
+        }
+    }
+    assert!(
+        files.len() > 50,
+        "only {} files found: is the scan reading the sources?",
+        files.len()
+    );
+    let mut long = Vec::new();
+    for file in &files {
+        for (name, line, n) in long_functions(&std::fs::read_to_string(file).unwrap(), MAX_FN_LINES) {
+            long.push(format!("{}:{line} {name}: {n} lines", file.strip_prefix(root).unwrap().display()));
+        }
+    }
+    assert!(long.is_empty(), "functions over {MAX_FN_LINES} lines:\n{}", long.join("\n"));
+}
+
+#[test]
+fn the_length_scan_counts_to_the_closing_brace() {
+    let body = "    let s = \"}\"; let c = '}'; // }\n".repeat(3);
+    let text = format!("pub(crate) fn f<'a>(x: &'a str) {{\n{body}}}\nfn g();\nconst fn h() {{ }}\n");
+    assert_eq!(long_functions(&text, 4), [("f".to_string(), 1, 5)]);
+    assert!(long_functions(&text, 5).is_empty());
+}
