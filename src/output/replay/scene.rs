@@ -1,0 +1,150 @@
+//! What the scene shows, apart from its encoding: the force scales' colours and shades,
+//! the node and support markers' colours and sizes, line widths, the legend's place and its
+//! numbers.
+
+use crate::model::Model;
+use foxglove::messages::Color;
+use nalgebra::Vector3;
+
+/// Line widths [px], independent of zoom so that any model size reads well.
+pub(super) const STRUT_WIDTH: f64 = 6.0;
+pub(super) const CABLE_WIDTH: f64 = 2.0;
+/// A member whose |force| is below this fraction of the step's largest |force| is slack.
+pub(super) const SLACK_FRACTION: f64 = 1e-6;
+/// Shades of each force scale: a member's shade is ⌈LEVELS · |N| / max |N|⌉, the maximum
+/// taken over the step's members of the same sign.
+pub(super) const LEVELS: usize = 4;
+/// Node sphere diameter as a fraction of the median member length of the model.
+const NODE_SIZE: f64 = 0.05;
+/// Support cube edge as a multiple of the node sphere diameter.
+pub(super) const SUPPORT_SIZE: f64 = 1.6;
+/// Highlighted struts: a magenta apart from the force scales, node and support colours.
+pub(super) const MAGENTA: Color = Color {
+    r: 0.85,
+    g: 0.0,
+    b: 0.75,
+    a: 1.0,
+};
+/// Legend font height [px].
+pub(super) const LEGEND_FONT: f64 = 14.0;
+pub(super) const RED: Color = Color {
+    r: 0.85,
+    g: 0.10,
+    b: 0.10,
+    a: 1.0,
+};
+pub(super) const BLUE: Color = Color {
+    r: 0.10,
+    g: 0.30,
+    b: 0.90,
+    a: 1.0,
+};
+/// Slack members, and where the force scales start: a mid grey, so that a faint force is
+/// still seen on Foxglove's light theme.
+pub(super) const GREY: Color = Color {
+    r: 0.55,
+    g: 0.55,
+    b: 0.55,
+    a: 1.0,
+};
+pub(super) const GOLD: Color = Color {
+    r: 0.95,
+    g: 0.70,
+    b: 0.10,
+    a: 1.0,
+};
+pub(super) const GREEN: Color = Color {
+    r: 0.10,
+    g: 0.65,
+    b: 0.25,
+    a: 1.0,
+};
+pub(super) const PURPLE: Color = Color {
+    r: 0.60,
+    g: 0.30,
+    b: 0.80,
+    a: 1.0,
+};
+/// Legend text: a teal of relative luminance 0.18, 4.6:1 against both black and white
+/// (WCAG's 4.5:1 for text), readable on Foxglove's dark and light themes alike.
+pub(super) const TEXT: Color = Color {
+    r: 0.0,
+    g: 0.515,
+    b: 0.515,
+    a: 1.0,
+};
+
+/// Colour of a line state: 0 slack (grey), 1..=LEVELS tension (grey-red to full red),
+/// LEVELS+1..=2·LEVELS compression (grey-blue to full blue).
+pub(super) fn state_colour(state: usize) -> Color {
+    if state == 0 {
+        return GREY;
+    }
+    let (full, level) = if state <= LEVELS { (RED, state) } else { (BLUE, state - LEVELS) };
+    let s = level as f64 / LEVELS as f64;
+    let mix = |w: f64, c: f64| s * c + (1.0 - s) * w;
+    Color {
+        r: mix(GREY.r, full.r),
+        g: mix(GREY.g, full.g),
+        b: mix(GREY.b, full.b),
+        a: 1.0,
+    }
+}
+
+/// The shade of |force| on a scale whose top is `max` (> 0): 1..=LEVELS.
+pub(super) fn level(force: f64, max: f64) -> usize {
+    ((LEVELS as f64 * force.abs() / max).ceil() as usize).clamp(1, LEVELS)
+}
+
+/// `x` with three significant digits, plainly where that reads well.
+pub(super) fn sig3(x: f64) -> String {
+    let a = x.abs();
+    if a == 0.0 || !a.is_finite() {
+        format!("{x}")
+    } else if (1e-2..1e5).contains(&a) {
+        let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
+/// Node sphere diameter [m]: [`NODE_SIZE`] times the median member length of the model's
+/// initial shape (a fraction of its extent without members, 0.05 m for a single point).
+pub(super) fn node_size(model: &Model) -> f64 {
+    let xyz: Vec<_> = model.positions();
+    let mut lengths: Vec<f64> = model
+        .members
+        .iter()
+        .map(|m| (xyz[m.nodes[1]] - xyz[m.nodes[0]]).norm())
+        .filter(|l| *l > 0.0 && l.is_finite())
+        .collect();
+    lengths.sort_by(f64::total_cmp);
+    if let Some(&median) = lengths.get(lengths.len() / 2) {
+        return NODE_SIZE * median;
+    }
+    let (lo, hi) = bounds(&xyz);
+    let extent = (hi - lo).norm();
+    if extent > 0.0 && extent.is_finite() {
+        0.02 * extent
+    } else {
+        0.05
+    }
+}
+
+fn bounds(xyz: &[Vector3<f64>]) -> (Vector3<f64>, Vector3<f64>) {
+    let lo = xyz.iter().fold(Vector3::repeat(f64::INFINITY), |a, p| a.inf(p));
+    let hi = xyz.iter().fold(Vector3::repeat(f64::NEG_INFINITY), |a, p| a.sup(p));
+    (lo, hi)
+}
+
+/// Above the middle of the shape's top, clear of it by a tenth of its extent (at least
+/// four node diameters).
+pub(super) fn legend_position(xyz: &[Vector3<f64>], node_size: f64) -> Vector3<f64> {
+    if xyz.is_empty() {
+        return Vector3::zeros();
+    }
+    let (lo, hi) = bounds(xyz);
+    let clear = (0.1 * (hi - lo).norm()).max(4.0 * node_size);
+    Vector3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), hi.z + clear)
+}
