@@ -79,7 +79,8 @@ import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
-EXAMPLES = ["prism_selfweight", "mixed_members", "prism_initial_displacement", "tower_ground_motion", "prism_twist_control"]
+EXAMPLES = ["prism_selfweight", "mixed_members", "prism_initial_displacement", "tower_ground_motion", "prism_twist_control",
+            "tower_stages_opensees"]
 
 # The issue's tolerances (issue 14, "Must show").
 TOL_EQUILIBRIUM = 1e-9  # positions, relative to the model size
