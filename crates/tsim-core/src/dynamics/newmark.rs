@@ -71,7 +71,7 @@ pub struct Integrator {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum DampingTangent {
-    /// β (dN/dl) l̇ along each member's current direction: objective.
+    /// β (dN/dl) l̇ along each member's current direction: rigid motions are not damped.
     #[default]
     Objective,
     /// K_T of the stage's initial state, frozen (misdirects damping across large motion).
