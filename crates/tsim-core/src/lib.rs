@@ -8,6 +8,7 @@
 //! step to a [`record::Recorder`]. This crate reads and writes no file and starts no
 //! thread: the config, the HDF5 and MCAP writers and the batch runner are the `tsim` crate.
 
+#![warn(missing_docs)]
 // `!(x > 0.0)` is how tsim writes "not positive, or NaN" (a NaN input must fail the
 // check, which `x <= 0.0` would let through); clippy's suggested `partial_cmp` form hides
 // that intent rather than showing it.

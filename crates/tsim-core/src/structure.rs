@@ -116,7 +116,9 @@ pub fn free_masses(dofs: &DofMap, node_mass: &[f64]) -> Vec<f64> {
 pub struct State {
     /// Time within the stage that produced it [s]; 0 for a static state.
     pub time: f64,
+    /// Node positions [m], global frame.
     pub positions: Vec<Vector3<f64>>,
+    /// Node velocities [m/s]; zero for a static state.
     pub velocities: Vec<Vector3<f64>>,
     /// Accelerations [m/s²]: informative; a transient starting from this state recomputes
     /// the acceleration consistent with its own loads and damping.

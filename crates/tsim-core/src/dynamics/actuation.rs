@@ -14,6 +14,7 @@ pub struct Actuator {
     pub members: Vec<usize>,
     /// Rest length where f = 1, over that at the stage's start.
     pub scale: f64,
+    /// f(t), the fraction of the change made at stage time t.
     pub time: TimeFunction,
 }
 

@@ -4,7 +4,9 @@
 /// The energy ledger of one converged step [J].
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Energy {
+    /// Kinetic energy ½ vᵀ M v (relative to the ground under ground motion).
     pub kinetic: f64,
+    /// Strain energy of the members, Σ U(l, l0).
     pub strain: f64,
     /// Dissipated by damping since the stage began.
     pub damping: f64,

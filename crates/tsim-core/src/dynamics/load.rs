@@ -22,19 +22,36 @@ pub enum TimeFunction {
     /// 1 at every t.
     Constant,
     /// 1 for 0 ≤ t < duration, then 0.
-    Step { duration: f64 },
+    Step {
+        /// End of the step [s].
+        duration: f64,
+    },
     /// t/duration up to `duration`, then 1.
-    Ramp { duration: f64 },
+    Ramp {
+        /// Rise time [s].
+        duration: f64,
+    },
     /// sin(π t/duration) for 0 ≤ t ≤ duration, then 0.
-    HalfSine { duration: f64 },
+    HalfSine {
+        /// Pulse length [s].
+        duration: f64,
+    },
     /// sin(2π f t + φ) for 0 ≤ t < duration (for every t ≥ 0 without one).
-    Harmonic { frequency: f64, phase: f64, duration: Option<f64> },
+    Harmonic {
+        /// Frequency f [Hz].
+        frequency: f64,
+        /// Phase φ [rad].
+        phase: f64,
+        /// End time [s]; `None`: no end.
+        duration: Option<f64>,
+    },
     /// Piecewise linear through (t, f), times strictly increasing (at least two points);
     /// the first value before the first time, the last after the last.
     Table(Vec<[f64; 2]>),
 }
 
 impl TimeFunction {
+    /// f(t) at stage time `t` [s].
     pub fn at(&self, t: f64) -> f64 {
         use std::f64::consts::PI;
         match *self {
@@ -156,9 +173,11 @@ fn table_rate(points: &[[f64; 2]], t: f64, before: bool) -> f64 {
 /// The same force on each of a set of nodes, scaled by a time function.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NodalLoad {
+    /// Indices of the loaded nodes.
     pub nodes: Vec<usize>,
     /// Force per node [N].
     pub force: Vector3<f64>,
+    /// The force's factor f(t).
     pub time: TimeFunction,
 }
 
@@ -172,6 +191,7 @@ impl NodalLoad {
         NodalLoad { nodes, force, time }
     }
 
+    /// The load's factor f(t) at stage time `t` [s].
     pub fn factor(&self, t: f64) -> f64 {
         self.time.at(t)
     }
@@ -196,7 +216,9 @@ impl NodalLoad {
 /// every support together.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GroundMotion {
+    /// Peak ground acceleration vector [m/s²], global frame.
     pub acceleration: Vector3<f64>,
+    /// The acceleration's factor f(t).
     pub time: TimeFunction,
 }
 
@@ -204,7 +226,9 @@ pub struct GroundMotion {
 /// top, see [`FreeLoads`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Loads {
+    /// Nodal loads, each with its time function.
     pub nodal: Vec<NodalLoad>,
+    /// Ground acceleration, if any (the stage then works relative to the ground).
     pub ground: Option<GroundMotion>,
 }
 

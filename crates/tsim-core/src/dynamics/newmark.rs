@@ -12,6 +12,7 @@ pub struct NewmarkParams {
     /// β = 1/4 with γ = 1/2 is the average-acceleration rule: unconditionally stable, no
     /// numerical damping, energy-conserving on linear problems.
     pub beta: f64,
+    /// γ; above 1/2 it adds numerical damping.
     pub gamma: f64,
     /// Time step Δt [s] (paper: 0.001).
     pub dt: f64,
@@ -34,14 +35,18 @@ impl Default for NewmarkParams {
 /// Rayleigh damping and the stiffness its βK term is evaluated with.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Damping {
+    /// C = αM + βK coefficients.
     pub rayleigh: Rayleigh,
+    /// Which K the βK term uses.
     pub tangent: DampingTangent,
 }
 
 /// Everything a Newmark integrator is set up with.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Integrator {
+    /// β, γ, Δt and step cuts.
     pub params: NewmarkParams,
+    /// Rayleigh damping and its βK variant.
     pub damping: Damping,
     /// Newton settings of every step (tolerances, linear solver, tangent reuse).
     pub newton: NewtonSettings,
@@ -66,6 +71,7 @@ pub struct Integrator {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum DampingTangent {
+    /// β (dN/dl) l̇ along each member's current direction: rigid motions are not damped.
     #[default]
     Objective,
     /// K_T of the stage's initial state, frozen (misdirects damping across large motion).
@@ -80,15 +86,20 @@ pub enum DampingTangent {
 /// halves: no converged report counts it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Retried {
+    /// Step attempts that failed and were cut.
     pub attempts: usize,
+    /// Newton iterations those attempts took.
     pub iterations: usize,
+    /// Tangent factorizations those attempts took.
     pub factorizations: usize,
 }
 
 /// State and integrator of one time-stepping stage on the free DOFs. Every buffer a step
 /// needs is allocated here, once: a step allocates nothing.
 pub struct Newmark<'a> {
+    /// The structure at the current iterate (after a step: the converged state).
     pub asm: Assembly<'a>,
+    /// β, γ, Δt and step cuts.
     pub params: NewmarkParams,
     /// Rayleigh damping, with the state its βK variant keeps.
     viscous: Viscous,
@@ -97,9 +108,12 @@ pub struct Newmark<'a> {
     newton: NewtonSettings,
     /// Lumped mass per free DOF [kg].
     pub mass: Vec<f64>,
-    /// Free coordinates, velocities, accelerations of the last converged state.
+    /// Free coordinates of the last converged state [m] (relative to the ground under
+    /// ground motion).
     pub u: Vec<f64>,
+    /// Free velocities of the last converged state [m/s].
     pub v: Vec<f64>,
+    /// Free accelerations of the last converged state [m/s²].
     pub a: Vec<f64>,
     /// External force on the free DOFs at the last converged time.
     f: Vec<f64>,
@@ -110,6 +124,7 @@ pub struct Newmark<'a> {
     ledger: Ledger,
     /// Failed step attempts since the stage began.
     pub retried: Retried,
+    /// Stage time of the last converged state [s].
     pub time: f64,
     /// The Newton workspace, taken out while a step runs.
     ws: Option<NewtonWorkspace>,

@@ -7,6 +7,7 @@ use super::{ForceLaw, LawEval};
 pub struct LinearElastic {
     /// Axial rigidity EA [N].
     pub ea: f64,
+    /// A cable: slack (N = 0, dN/dl = 0) below its rest length instead of compressed.
     pub tension_only: bool,
 }
 

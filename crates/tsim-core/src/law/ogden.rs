@@ -3,7 +3,9 @@ use super::{ForceLaw, LawEval};
 /// One term of the Ogden series: shear modulus μ [Pa] and exponent α.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OgdenTerm {
+    /// Modulus μ_i [Pa]; one term may be negative (the paper's third is).
     pub mu: f64,
+    /// Exponent α_i, dimensionless and non-zero.
     pub alpha: f64,
 }
 
@@ -62,6 +64,7 @@ fn ogden_energy_density(terms: &[OgdenTerm], lambda: f64) -> f64 {
 /// Since a < 0 the branch slope −a / (2√(aλ + b)) falls as λ falls: the cord softens.
 #[derive(Clone, Debug, PartialEq)]
 pub struct OgdenCord {
+    /// The Ogden series Σ μ_i, α_i of the rubber.
     pub terms: Vec<OgdenTerm>,
     /// Primary cross-section A0 [m²].
     pub area: f64,

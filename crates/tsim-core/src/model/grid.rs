@@ -52,6 +52,7 @@ pub struct GridSpec {
     /// Depth h: the height of the top layer over the bottom one.
     #[serde(default = "default_depth")]
     pub depth: f64,
+    /// Which nodes are supported, and in which directions.
     #[serde(default)]
     pub supports: GridSupports,
 }

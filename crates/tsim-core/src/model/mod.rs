@@ -18,6 +18,7 @@ pub use validate::ModelError;
 pub const AXES: [&str; 3] = ["x", "y", "z"];
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+/// Strut or cable: form-finding, substitution and the slack checks treat the two apart.
 #[serde(rename_all = "snake_case")]
 pub enum MemberKind {
     /// Compression member (brown in the paper's figures).
@@ -27,6 +28,7 @@ pub enum MemberKind {
 }
 
 impl MemberKind {
+    /// `"strut"` or `"cable"`, as in config and outputs.
     pub fn as_str(self) -> &'static str {
         match self {
             MemberKind::Strut => "strut",
@@ -35,38 +37,48 @@ impl MemberKind {
     }
 }
 
+/// A straight two-node bar: a strut or a cable.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Member {
+    /// Unique id, as in config and outputs.
     pub id: String,
     /// Indices into [`Model::nodes`].
     pub nodes: [usize; 2],
+    /// Strut or cable.
     pub kind: MemberKind,
     /// Member groups, e.g. `ring`, `side`, `saddle`; form-finding may set C per group.
     pub groups: Vec<String>,
 }
 
+/// A pin joint: its id, initial position and supports.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Node {
+    /// Unique id, as in config and outputs.
     pub id: String,
     /// Initial coordinates [m].
     pub xyz: Vector3<f64>,
-    /// Supported (fixed) directions.
+    /// Supported (fixed) directions x, y, z in the global frame.
     pub support: [bool; 3],
 }
 
+/// A tensegrity's topology and initial geometry, without materials.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Model {
+    /// Nodes; node i owns DOFs 3i..3i+3 of every flat 3n vector.
     pub nodes: Vec<Node>,
+    /// Members, in the order of every per-member vector (forces, rest lengths).
     pub members: Vec<Member>,
     /// Named node groups (`base`, `middle`, `top`, ...), node indices in order.
     pub node_groups: BTreeMap<String, Vec<usize>>,
 }
 
 impl Model {
+    /// Number of nodes n (3n DOFs before supports).
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
 
+    /// Initial node positions [m], in node order.
     pub fn positions(&self) -> Vec<Vector3<f64>> {
         self.nodes.iter().map(|n| n.xyz).collect()
     }

@@ -4,39 +4,112 @@ use super::Model;
 use nalgebra::{Matrix6, Vector3};
 use std::collections::HashMap;
 
+/// An invalid model, or a node, member or group named for it that it does not have. Every
+/// message names the offending item and the fix; a `hint` is ` (did you mean `x`?)` or empty.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum ModelError {
+    /// Two nodes share an id.
     #[error("node id `{node}` is used twice; give every node a unique id")]
-    DuplicateNode { node: String },
+    DuplicateNode {
+        /// The repeated id.
+        node: String,
+    },
+    /// A member's end is not a node of the model.
     #[error("member `{member}` refers to unknown node `{node}`{hint}; define the node or fix the id")]
-    UnknownNode { member: String, node: String, hint: String },
-    #[error("member `{member}` has zero length (nodes `{a}` and `{b}` coincide); move a node or remove the member")]
-    ZeroLength { member: String, a: String, b: String },
-    #[error("members `{member}` and `{other}` join the same nodes `{a}` and `{b}`; remove one of them")]
-    DuplicateMember {
+    UnknownNode {
+        /// The member's id.
         member: String,
-        other: String,
+        /// The end's node id, as given.
+        node: String,
+        /// The closest node id the model has, if any is close.
+        hint: String,
+    },
+    /// A member's two ends coincide (same node, or within 1e-12 of the model size).
+    #[error("member `{member}` has zero length (nodes `{a}` and `{b}` coincide); move a node or remove the member")]
+    ZeroLength {
+        /// The member's id.
+        member: String,
+        /// Id of its first end node.
         a: String,
+        /// Id of its second end node.
         b: String,
     },
+    /// Two members join the same pair of nodes.
+    #[error("members `{member}` and `{other}` join the same nodes `{a}` and `{b}`; remove one of them")]
+    DuplicateMember {
+        /// Id of the later member.
+        member: String,
+        /// Id of the earlier member on the same nodes.
+        other: String,
+        /// Id of one shared node.
+        a: String,
+        /// Id of the other shared node.
+        b: String,
+    },
+    /// A node that no member connects.
     #[error("node `{node}` has no members; connect it or remove it")]
-    UnusedNode { node: String },
+    UnusedNode {
+        /// The node's id.
+        node: String,
+    },
+    /// A node group lists a node id the model does not have.
     #[error("node group `{group}` names unknown node `{node}`{hint}")]
-    UnknownGroupNode { group: String, node: String, hint: String },
+    UnknownGroupNode {
+        /// The node group's name.
+        group: String,
+        /// The unknown node id.
+        node: String,
+        /// The closest node id the model has, if any is close.
+        hint: String,
+    },
+    /// A node group the model does not have.
     #[error("unknown node group `{group}`{hint}; the model has: {known}")]
-    UnknownGroup { group: String, known: String, hint: String },
+    UnknownGroup {
+        /// The group name, as given.
+        group: String,
+        /// The model's node groups, comma-separated.
+        known: String,
+        /// The closest group name, if any is close.
+        hint: String,
+    },
+    /// A node id, named by a selection, that the model does not have.
     #[error("unknown node `{node}`{hint}; use a node id of `model.nodes` (or a group with `groups`)")]
-    UnknownNodeId { node: String, hint: String },
+    UnknownNodeId {
+        /// The node id, as given.
+        node: String,
+        /// The closest node id the model has, if any is close.
+        hint: String,
+    },
+    /// A member id the model does not have.
     #[error("unknown member `{member}`{hint}; use a member id of `model.members` (or a member group with `groups`)")]
-    UnknownMember { member: String, hint: String },
+    UnknownMember {
+        /// The member id, as given.
+        member: String,
+        /// The closest member id the model has, if any is close.
+        hint: String,
+    },
+    /// A member group no member of the model belongs to.
     #[error("unknown member group `{group}`{hint}; the model's member groups: {known}")]
-    UnknownMemberGroup { group: String, known: String, hint: String },
+    UnknownMemberGroup {
+        /// The group name, as given.
+        group: String,
+        /// The model's member groups, comma-separated.
+        known: String,
+        /// The closest group name, if any is close.
+        hint: String,
+    },
+    /// A node selection that names neither node ids nor node groups.
     #[error("names no node: give `nodes` (node ids) or `groups` (node groups)")]
     EmptyNodeSet,
+    /// A member selection that names neither member ids nor member groups.
     #[error("names no member: give `members` (member ids) or `groups` (member groups)")]
     EmptyMemberSet,
+    /// The supports leave a rigid-body motion of the whole model unrestrained.
     #[error("the supports leave rigid-body motion free ({motion}); support more directions, e.g. fix x and y of one base node and one more in-plane direction of another")]
-    RigidBodyFree { motion: String },
+    RigidBodyFree {
+        /// The free motions, e.g. `translation along x, rotation about z`.
+        motion: String,
+    },
 }
 
 impl Model {

@@ -62,6 +62,7 @@ pub struct EventSummary {
 }
 
 impl<'r> ClearanceLog<'r> {
+    /// A log in front of `inner`, with nothing recorded yet.
     pub fn new(inner: &'r mut dyn Recorder) -> Self {
         ClearanceLog {
             inner,

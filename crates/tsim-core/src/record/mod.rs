@@ -19,11 +19,13 @@ use nalgebra::Vector3;
 /// What a stage does; several stages of a case may be of one kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StageKind {
+    /// Form-finding by the measure potential (paper §2): the self-equilibrium shape.
     FormFinding,
     /// The equilibrium of a model given with rest lengths (no form-finding).
     Equilibrium,
     /// Gravity and static loads applied in load steps.
     Static,
+    /// Natural frequencies and modes at an equilibrium, and the Rayleigh damping they give.
     Eigen,
     /// Newmark time stepping (the paper's free vibration and deployment).
     Transient,
@@ -61,11 +63,14 @@ impl StageKind {
 /// `free_vibration`, `folding`, `deployment`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Stage {
+    /// What the stage does.
     pub kind: StageKind,
+    /// Its name in the case, unique.
     pub name: std::sync::Arc<str>,
 }
 
 impl Stage {
+    /// A stage of `kind` named `name`.
     pub fn new(kind: StageKind, name: &str) -> Self {
         Stage { kind, name: name.into() }
     }
@@ -75,10 +80,12 @@ impl Stage {
         Stage::new(kind, kind.name())
     }
 
+    /// Its name in the case.
     pub fn name(&self) -> &str {
         &self.name
     }
 
+    /// Whether its kind is static ([`StageKind::is_static`]).
     pub fn is_static(&self) -> bool {
         self.kind.is_static()
     }
@@ -88,6 +95,7 @@ impl Stage {
 /// the stage prescribes (folding), whose reaction is the force that drives it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Constraint {
+    /// Node index.
     pub node: usize,
     /// 0, 1, 2 for x, y, z.
     pub axis: usize,
@@ -119,10 +127,12 @@ impl Constraints {
         Constraints(list)
     }
 
+    /// Number of constrained directions.
     pub fn len(&self) -> usize {
         self.0.len()
     }
 
+    /// Whether no direction is constrained.
     pub fn is_empty(&self) -> bool {
         self.0.is_empty()
     }
@@ -144,14 +154,18 @@ pub struct Frame<'a> {
     /// Simulated time within the stage [s]; for folding, the applied fraction of the
     /// prescribed displacement (0..1).
     pub time: f64,
+    /// Node positions [m], global frame (relative to the ground under ground motion).
     pub positions: &'a [Vector3<f64>],
     /// Node velocities [m/s]; `None` for static stages.
     pub velocities: Option<&'a [Vector3<f64>]>,
+    /// Member axial forces N [N], tension positive.
     pub forces: &'a [f64],
+    /// Member lengths [m].
     pub lengths: &'a [f64],
     /// The members' rest lengths at this step [m], in a stage that changes them in time
     /// (declared in [`StageLayout::actuated`]); `None` elsewhere.
     pub rest_lengths: Option<&'a [f64]>,
+    /// The energy ledger at this step [J].
     pub energy: Energy,
     /// External load applied on every node [N]: dead loads, weight, time-varying loads
     /// (and, under ground motion, −m a_g on the free directions).
@@ -183,13 +197,16 @@ pub struct FrameClearance<'a> {
 /// The lowest modes at one step of a stage.
 #[derive(Clone, Copy, Debug)]
 pub struct FrameModes<'a> {
+    /// ω² of the lowest modes, ascending [rad²/s²] (negative: unstable).
     pub omega2: &'a [f64],
+    /// The lowest mode's shape per node, mass-normalised [m·kg^-1/2] (zero at fixed directions).
     pub lowest: &'a [Vector3<f64>],
 }
 
 /// Static description of the model written once per case.
 #[derive(Clone, Copy, Debug)]
 pub struct ModelRecord<'a> {
+    /// Topology, initial geometry and supports.
     pub model: &'a Model,
     /// Real-material rest lengths [m].
     pub rest_lengths: &'a [f64],
@@ -205,6 +222,7 @@ pub struct ModelRecord<'a> {
 /// What a stage's outputs need before any stage runs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StageLayout {
+    /// The stage's kind and name.
     pub stage: Stage,
     /// The directions the stage holds fixed: the supports, and for folding the
     /// prescribed directions.
@@ -237,8 +255,11 @@ impl StageLayout {
 pub struct FormFindRecord<'a> {
     /// `formfinding` or `equilibrium`: the group it is written to.
     pub stage: &'a Stage,
+    /// max|r| at each Newton iteration, the first at the start [N].
     pub residuals: &'a [f64],
+    /// Equilibrium node positions [m].
     pub positions: &'a [Vector3<f64>],
+    /// Member axial forces N at equilibrium [N], tension positive.
     pub forces: &'a [f64],
     /// Strut clearance of the equilibrium shape; `None` when not tracked.
     pub clearance: Option<FrameClearance<'a>>,
@@ -253,10 +274,13 @@ pub struct EigenRecord<'a> {
     pub omega2: &'a [f64],
     /// Mass-normalised mode shapes, `mode_shapes[mode][node]` [m·kg^-1/2].
     pub mode_shapes: &'a [Vec<Vector3<f64>>],
+    /// Rayleigh α [1/s].
     pub rayleigh_alpha: f64,
+    /// Rayleigh β [s].
     pub rayleigh_beta: f64,
     /// 1-based mode numbers the damping came from (empty when α, β were given).
     pub damping_modes: &'a [usize],
+    /// Damping ratio ζ asked for at each of `damping_modes`.
     pub damping_ratio: &'a [f64],
 }
 
@@ -265,12 +289,14 @@ pub struct EigenRecord<'a> {
 /// or why it was skipped (a model above the dense limit).
 #[derive(Clone, Copy, Debug)]
 pub struct RigidityRecord<'a> {
+    /// The analysis, or why it was skipped.
     pub analysis: Result<&'a Rigidity, &'a str>,
 }
 
 /// Why a recorder failed (I/O, encoding, a lost writer thread), kept whole as the source
 /// of the stage error it becomes.
 pub type RecordError = Box<dyn std::error::Error + Send + Sync>;
+/// What every [`Recorder`] call returns.
 pub type RecordResult = Result<(), RecordError>;
 
 /// How a case ended, as the outputs' `status` records it.
@@ -299,15 +325,19 @@ impl std::fmt::Display for Outcome {
 /// A sink for results. Stages call, in order: `model`, `formfinding`, `rigidity`, `eigen`, then for
 /// each time-stepping stage `begin_stage`, `frame`…, `end_stage`; `finish` last.
 pub trait Recorder {
+    /// The model, its materials and the stages to come, once per case, first.
     fn model(&mut self, _record: &ModelRecord) -> RecordResult {
         Ok(())
     }
+    /// Form-finding's (or the given model's) equilibrium.
     fn formfinding(&mut self, _record: &FormFindRecord) -> RecordResult {
         Ok(())
     }
+    /// The equilibrium-matrix analysis of that equilibrium.
     fn rigidity(&mut self, _record: &RigidityRecord) -> RecordResult {
         Ok(())
     }
+    /// The eigen analysis.
     fn eigen(&mut self, _record: &EigenRecord) -> RecordResult {
         Ok(())
     }
@@ -315,9 +345,11 @@ pub trait Recorder {
     fn begin_stage(&mut self, _stage: &Stage, _constraints: &Constraints) -> RecordResult {
         Ok(())
     }
+    /// One converged step of the stage begun last.
     fn frame(&mut self, _frame: &Frame) -> RecordResult {
         Ok(())
     }
+    /// The stage begun last has taken all its steps.
     fn end_stage(&mut self, _stage: &Stage) -> RecordResult {
         Ok(())
     }

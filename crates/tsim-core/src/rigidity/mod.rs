@@ -29,13 +29,21 @@ pub const MAX_DENSE: usize = 1500;
 /// Why the analysis could not be made.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum RigidityError {
+    /// A model above [`MAX_DENSE`] free DOFs or members.
     #[error(
         "equilibrium-matrix analysis: {dofs} free DOFs × {members} members exceeds the dense limit of {MAX_DENSE} \
          in either dimension; the analysis is skipped for models this large"
     )]
-    TooLarge { dofs: usize, members: usize },
+    TooLarge {
+        /// Free DOFs n_f.
+        dofs: usize,
+        /// Members b.
+        members: usize,
+    },
+    /// The SVD of A failed (faer's error, as text).
     #[error("equilibrium-matrix analysis: the SVD did not converge ({0})")]
     Svd(String),
+    /// A member (by id) has coincident ends at the analysed positions.
     #[error("equilibrium-matrix analysis: member `{0}` has zero length")]
     ZeroLength(String),
 }
@@ -47,6 +55,7 @@ pub struct Rigidity {
     pub singular_values: Vec<f64>,
     /// Singular values at or below it count as zero (see [`rank_tolerance`]).
     pub tolerance: f64,
+    /// Rank r of A.
     pub rank: usize,
     /// Independent self-stress states, s = b − r.
     pub s: usize,
@@ -69,6 +78,7 @@ pub struct Rigidity {
     pub self_stress_source: String,
     /// ‖A t‖/‖t‖ of the prestress the state was given with (0 without one).
     pub prestress_residual: f64,
+    /// Prestress and super stability of the state.
     pub stability: Stability,
 }
 
@@ -82,12 +92,19 @@ impl Rigidity {
 /// The key figures of an analysis for a case summary, or why it was skipped.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Summary {
+    /// Rank r of the equilibrium matrix.
     pub rank: usize,
+    /// Independent self-stress states, b − r.
     pub s: usize,
+    /// Infinitesimal mechanisms, n_f − r, rigid-body motions included.
     pub m: usize,
+    /// Rigid-body motions the supports allow.
     pub rigid_body_modes: usize,
+    /// Internal mechanisms, m less the rigid-body motions.
     pub m_internal: usize,
+    /// Whether the state is prestress stable ([`Stability::prestress_stable`]).
     pub prestress_stable: bool,
+    /// Whether the state is super stable ([`Stability::super_stable`]).
     pub super_stable: bool,
     /// Why there is no analysis (a model above the dense limit); the figures are then 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -95,6 +112,7 @@ pub struct Summary {
 }
 
 impl Summary {
+    /// The figures of `analysis`, or zeros and the reason it failed.
     pub fn new(analysis: &Result<Rigidity, RigidityError>) -> Self {
         match analysis {
             Ok(r) => Summary {

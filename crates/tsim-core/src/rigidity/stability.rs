@@ -41,7 +41,9 @@ pub struct Stability {
     pub mechanism_stiffness: Vec<f64>,
     /// Q's eigenvalues above it count as positive [N/m].
     pub tolerance: f64,
+    /// Proper stress and Q ≻ 0 on the internal mechanisms (Connelly & Whiteley).
     pub prestress_stable: bool,
+    /// The four sufficient conditions of super stability all hold (module doc).
     pub super_stable: bool,
     /// Which super-stability condition fails, or that all hold.
     pub super_stability: String,

@@ -35,22 +35,41 @@ pub enum Shift {
     Nearest(f64),
 }
 
+/// Why a partial eigensolve failed.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum EigenError {
     /// K − σM cannot be factored: σ is (numerically) an eigenvalue.
     #[error("K − σM is singular at the shift σ = {shift:e} (σ is an eigenvalue); move the shift: {source}")]
-    Singular { shift: f64, source: LinearError },
+    Singular {
+        /// The shift σ, in the units of λ.
+        shift: f64,
+        /// The factorization's failure.
+        source: LinearError,
+    },
     /// Fewer eigenpairs converged than asked for.
     #[error("the Lanczos iteration converged {found} of {wanted} eigenpairs")]
-    NotConverged { found: usize, wanted: usize },
+    NotConverged {
+        /// Eigenpairs converged.
+        found: usize,
+        /// Eigenpairs asked for.
+        wanted: usize,
+    },
     /// The partial solver needs more unknowns than its Krylov subspace.
     #[error("{wanted} eigenpairs of {n} unknowns: too few unknowns for the partial solver (needs more than {needed}); use the dense one")]
-    TooSmall { n: usize, wanted: usize, needed: usize },
+    TooSmall {
+        /// Order of the matrix (free DOFs).
+        n: usize,
+        /// Eigenpairs asked for.
+        wanted: usize,
+        /// The Krylov dimension `n` must exceed ([`krylov_dimension`]).
+        needed: usize,
+    },
 }
 
 /// Eigenpairs of K φ = λ M φ, λ ascending, φ M-orthonormal.
 #[derive(Clone, Debug)]
 pub struct EigenPairs {
+    /// Eigenvalues λ, ascending (for K in N/m and M in kg: ω² in rad²/s²).
     pub values: Vec<f64>,
     /// One column per eigenvalue.
     pub vectors: Mat<f64>,

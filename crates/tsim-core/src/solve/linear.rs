@@ -21,13 +21,19 @@ use faer::{Conj, Mat, Par, Side};
 use super::backoff::Backoff;
 use super::small_solve::{cholesky_in_place, cholesky_solve_in_place, SMALL_FACTOR, SMALL_SOLVE};
 
+/// Why a factorization or solve failed.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum LinearError {
     /// The matrix is singular (or, for the sparse path, not factorizable) at free DOF
     /// `dof`, an index in the caller's numbering (the matrix's row/column). `ratio`: the
     /// pivot relative to the largest one, where the factorization measures it (dense LU).
     #[error("singular tangent at {}{}", dof_text(*.dof), ratio_text(*.ratio))]
-    Singular { dof: Option<usize>, ratio: Option<f64> },
+    Singular {
+        /// The free DOF (row) at which it failed, if the factorization names one.
+        dof: Option<usize>,
+        /// |pivot| / largest |pivot|, if measured.
+        ratio: Option<f64>,
+    },
 }
 
 /// "free DOF 3" for error messages (the caller that knows the model adds its name).
@@ -42,6 +48,7 @@ pub(super) fn ratio_text(ratio: Option<f64>) -> String {
 
 /// Receives matrix entries (row, column, value), added to what is there.
 pub trait TangentSink {
+    /// Adds `value` to entry (`row`, `col`), both free-DOF indices.
     fn add(&mut self, row: usize, col: usize, value: f64);
 
     /// Adds a 6×6 element block on the DOFs `free` (`None`: not a free DOF). Element `e`
@@ -125,6 +132,7 @@ pub struct DenseSolver {
 }
 
 impl DenseSolver {
+    /// A solver for n × n matrices, its buffers allocated.
     pub fn new(n: usize) -> Self {
         let req = StackReq::any_of(&[
             llt_factor::cholesky_in_place_scratch::<f64>(n, Par::Seq, Default::default()),
@@ -264,6 +272,7 @@ impl TangentSolver for DenseSolver {
 /// The shape of a sparse matrix before its values: every (row, column) that can receive an
 /// entry (both triangles), and the order to eliminate its unknowns in.
 pub struct Sparsity<P> {
+    /// The (row, column) pairs that can be nonzero, both triangles; repeats allowed.
     pub entries: P,
     /// `order[k]`: the unknown eliminated k-th (a structure's: `tsm::tangent_sparsity`),
     /// used where its factor has fewer nonzeros than with faer's approximate minimum

@@ -47,7 +47,9 @@ pub enum TangentUpdate {
     /// steps are strongly nonlinear, and their solves are few).
     #[default]
     Auto,
+    /// Factor at every iteration (full Newton).
     Full,
+    /// Keep a factorization while it contracts the residual (modified Newton).
     Reuse,
 }
 
@@ -76,7 +78,9 @@ pub enum LinearSolverChoice {
     /// factorization beats sparse bookkeeping; sparse Cholesky above.
     #[default]
     Auto,
+    /// Dense Cholesky (LU fallback) at any size.
     Dense,
+    /// Sparse Cholesky (LDLᵀ, then LU fallback) at any size.
     Sparse,
 }
 
@@ -199,7 +203,9 @@ impl Default for NewtonSettings {
 /// residual can be resolved (stiff struts: EA·ε·l is ~1e-4 N for the form-finding struts).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Scale {
+    /// Force level [N]: the relative force tolerance is taken of it.
     pub force: f64,
+    /// Round-off floor of the residual [N], added to the tolerance.
     pub roundoff: f64,
     /// Round-off the floor adds at a frozen iterate, one whose last increment moved no
     /// coordinate by more than a few ulps, so that no iteration can change it any more:
@@ -233,8 +239,10 @@ pub trait Residual {
     }
 }
 
+/// How a converged Newton solve went.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct NewtonReport {
+    /// Newton iterations taken (0: the start point already met the tolerances).
     pub iterations: usize,
     /// Tangent factorizations (equal to `iterations` for full Newton).
     pub factorizations: usize,
@@ -242,23 +250,40 @@ pub struct NewtonReport {
     pub residual: f64,
 }
 
+/// Why a Newton solve failed; every DOF is a free-DOF index (`tsm::DofMap` names it).
 #[derive(Debug, PartialEq)]
 pub enum SolveError {
     /// The iteration cap was reached. Both criteria are kept: the force residual max|r|
     /// against `tolerance` [N], the last increment max|Δu| against `increment_tolerance`
     /// [m]; `worst_dof` has the largest residual.
     NotConverged {
+        /// Iterations taken (the cap).
         iterations: usize,
+        /// max |r| at the last iterate [N].
         residual: f64,
+        /// The force tolerance it had to meet [N].
         tolerance: f64,
+        /// max |Δu| of the last increment [m].
         increment: f64,
+        /// The increment tolerance it had to meet [m].
         increment_tolerance: f64,
+        /// The free DOF of the largest |r|.
         worst_dof: usize,
     },
     /// The residual (or the increment) became inf/NaN; `dof`: its first non-finite entry.
-    NonFinite { iteration: usize, dof: Option<usize> },
+    NonFinite {
+        /// The iteration it happened in.
+        iteration: usize,
+        /// The first non-finite entry's free DOF, if found.
+        dof: Option<usize>,
+    },
     /// The tangent is singular at free DOF `dof` (see [`LinearError::Singular`]).
-    Singular { dof: Option<usize>, ratio: Option<f64> },
+    Singular {
+        /// The free DOF of the failed pivot, if the factorization names one.
+        dof: Option<usize>,
+        /// |pivot| / largest |pivot|, if measured.
+        ratio: Option<f64>,
+    },
 }
 
 impl SolveError {

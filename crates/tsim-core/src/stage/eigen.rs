@@ -28,17 +28,30 @@ pub enum DampingFrom {
     /// α, β given.
     Given(Rayleigh),
     /// Damping ratios at two modes (1-based), eqs 13–14.
-    Modes { modes: [usize; 2], ratios: [f64; 2] },
+    Modes {
+        /// The two 1-based mode numbers.
+        modes: [usize; 2],
+        /// Damping ratio ζ at each.
+        ratios: [f64; 2],
+    },
     /// Damping ratios at the two modes of largest effective modal mass along an axis
     /// (0, 1, 2 for x, y, z).
-    AutoModes { axis: usize, ratios: [f64; 2] },
+    AutoModes {
+        /// 0, 1, 2 for x, y, z.
+        axis: usize,
+        /// Damping ratio ζ at each of the two modes, in mode order.
+        ratios: [f64; 2],
+    },
 }
 
 /// Eigen analysis at the state it is given, and the Rayleigh damping it implies.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Eigen {
+    /// Where the Rayleigh damping comes from.
     pub damping: DampingFrom,
+    /// Kind and name, for the recorder.
     pub stage: Stage,
+    /// Dense or partial, and how many modes.
     pub solver: ModeSolver,
 }
 
@@ -67,6 +80,7 @@ pub enum EigenSolverChoice {
 /// Which modes an analysis computes and how.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ModeSolver {
+    /// Dense, partial, or by size.
     pub choice: EigenSolverChoice,
     /// Modes of the partial solver.
     pub modes: usize,
@@ -105,12 +119,17 @@ impl ModeSolver {
 /// Key figures of the eigen analysis.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct EigenSummary {
+    /// ω² of the modes computed, ascending [rad²/s²].
     pub omega2: Vec<f64>,
+    /// Their frequencies f = ω/2π [Hz].
     pub frequency_hz: Vec<f64>,
     /// 1-based modes the damping came from (empty when α, β were given).
     pub damping_modes: Vec<usize>,
+    /// Damping ratio ζ asked for at each of `damping_modes`.
     pub damping_ratio: Vec<f64>,
+    /// Rayleigh α [1/s].
     pub rayleigh_alpha: f64,
+    /// Rayleigh β [s].
     pub rayleigh_beta: f64,
 }
 
@@ -165,6 +184,7 @@ impl Analysis for Eigen {
     }
 }
 
+/// Eigenpairs of K_T φ = ω² M φ at one state, on the free DOFs.
 #[derive(Clone, Debug)]
 pub struct Modes {
     /// ω² ascending [rad²/s²].

@@ -28,16 +28,20 @@ pub enum Target {
 /// One prescribed direction of a set of nodes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Prescription {
+    /// Indices of the driven nodes.
     pub nodes: Vec<usize>,
     /// 0, 1, 2 for x, y, z.
     pub axis: usize,
+    /// Where the direction is driven to at the last step.
     pub target: Target,
 }
 
 /// The folding stage.
 #[derive(Clone, Debug)]
 pub struct Folding {
+    /// Kind and name, for the recorder.
     pub stage: Stage,
+    /// Static steps N, each driving the prescriptions by 1/N of the way.
     pub steps: usize,
     /// A failed step is halved up to this many times.
     pub max_cuts: u32,
@@ -48,14 +52,18 @@ pub struct Folding {
     pub modes: usize,
 }
 
+/// Key figures of a folding stage.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct FoldSummary {
+    /// Static steps N.
     pub steps: usize,
+    /// Newton iterations over all steps and sub-steps.
     pub newton_iterations: usize,
     /// Steps that needed sub-stepping.
     pub cut_steps: usize,
     /// Final height over initial height (max z − min z).
     pub height_ratio: f64,
+    /// Largest out-of-balance over the recorded steps.
     #[serde(flatten)]
     pub equilibrium: EquilibriumSummary,
     /// The lowest eigenvalues at every step, when asked for (`folding.eigen`).
@@ -67,6 +75,7 @@ pub struct FoldSummary {
 /// held.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct PathModes {
+    /// The folding step (0: the start).
     pub step: usize,
     /// ω² ascending [rad²/s²]; negative: unstable.
     pub omega2: Vec<f64>,

@@ -16,6 +16,7 @@ use crate::tsm::{tangent_sparsity, Assembly, DofMap};
 /// errors.
 #[derive(Clone, Copy, Debug)]
 pub struct SelfEquilibrium {
+    /// The stage's name in errors (`form-finding` or `equilibrium`).
     pub name: &'static str,
     /// Newton seeks a minimum of the potential ([`NewtonWorkspace::minimize`]).
     pub minimize: bool,
@@ -38,7 +39,10 @@ impl SelfEquilibrium {
 /// What an equilibrium solve found, besides the state.
 #[derive(Clone, Debug)]
 pub struct Equilibrium {
+    /// Member axial forces N at equilibrium [N], tension positive, under the laws solved
+    /// with (the measure potentials in form-finding).
     pub forces: Vec<f64>,
+    /// Member lengths at equilibrium [m].
     pub lengths: Vec<f64>,
     /// max|r| at each Newton iteration, the first at the start [N].
     pub residuals: Vec<f64>,
@@ -49,6 +53,7 @@ pub struct Equilibrium {
     /// Lowest eigenvalue of K_T on the free DOFs [N/m] and where it acts: > 0 is a stable
     /// equilibrium (a minimum of the potential).
     pub lowest_stiffness: f64,
+    /// The direction its eigenvector moves most ("node `t3` direction z").
     pub lowest_stiffness_at: String,
 }
 
@@ -125,7 +130,9 @@ pub fn explain_failure(model: &Model, error: Error) -> Error {
 /// Key figures of form-finding.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct FormFindSummary {
+    /// Newton iterations.
     pub iterations: usize,
+    /// max|r| at each Newton iteration, the first at the start [N].
     pub residuals: Vec<f64>,
     /// Total measure potential at the start and after each iteration [J].
     pub energies: Vec<f64>,
@@ -134,9 +141,13 @@ pub struct FormFindSummary {
     /// Which equilibrium was found: its height [m] and its stability (the lowest
     /// eigenvalue of the measure structure's K_T [N/m], > 0: stable, and where it acts).
     pub height: f64,
+    /// Lowest eigenvalue of the measure structure's K_T [N/m].
     pub lowest_stiffness: f64,
+    /// The direction its eigenvector moves most ("node `t3` direction z").
     pub lowest_stiffness_at: String,
+    /// Most compressive balanced member force [N] (tension positive).
     pub min_force: f64,
+    /// Most tensile balanced member force [N].
     pub max_force: f64,
 }
 

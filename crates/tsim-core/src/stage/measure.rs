@@ -31,7 +31,10 @@ pub enum CableCoefficients {
     /// C per member group (a cable's first group); every cable group must be listed.
     PerGroup(BTreeMap<String, f64>),
     /// From the layout's least-squares self-stress, scaled to this mean C.
-    SelfStress { mean: f64 },
+    SelfStress {
+        /// Mean cable C [N/m^n].
+        mean: f64,
+    },
 }
 
 /// Table 1's measure potentials with the cable rule above.
@@ -46,6 +49,7 @@ pub struct MeasureSpec {
     pub strut_n: f64,
     /// Cable exponent n (Table 1: 3); cable l0 is 0.
     pub cable_n: f64,
+    /// How each cable's C [N/m^n] is chosen.
     pub cable_c: CableCoefficients,
 }
 

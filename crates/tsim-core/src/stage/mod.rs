@@ -26,6 +26,7 @@ use crate::tsm::DofMap;
 /// Settings every stage of a case shares.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
+    /// Newton settings of every solve (tolerances, linear solver, tangent reuse).
     pub newton: NewtonSettings,
     /// Record every `every`-th step of a time-stepping stage (and its last).
     pub every: usize,
@@ -50,6 +51,7 @@ pub struct EquilibriumSummary {
     /// [N]
     #[serde(default)]
     pub max_equilibrium_error: f64,
+    /// The same, relative to the step's force scale.
     #[serde(default)]
     pub max_equilibrium_error_relative: f64,
 }
@@ -65,6 +67,7 @@ impl From<frames::EquilibriumCheck> for EquilibriumSummary {
 
 /// One stage of the paper's Figure 1.
 pub trait Analysis {
+    /// The stage's key figures, for the case summary.
     type Summary;
     /// Runs from the converged `state` of `structure`; returns the converged state the
     /// stage ends in and its key figures.

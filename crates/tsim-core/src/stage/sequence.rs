@@ -15,21 +15,27 @@ pub struct PlannedStage {
     /// Index of the state it starts from: 0 the shape (form-finding's or the given
     /// model's equilibrium, unloaded), k the end of stage k − 1 of the list.
     pub from: usize,
+    /// The stage and what it takes from earlier ones.
     pub analysis: Planned,
 }
 
 /// A stage of one kind, with what it takes from earlier ones.
 #[derive(Clone, Debug)]
 pub enum Planned {
+    /// Static loads in load steps.
     Static(StaticLoad),
+    /// Eigen analysis and the Rayleigh damping it gives.
     Eigen(Eigen),
+    /// Newmark time stepping.
     Transient {
+        /// The stage.
         stage: Transient,
         /// The list index of the eigen stage whose Rayleigh α, β damp this one.
         rayleigh_from: Option<usize>,
         /// The state index whose shape this stage's is compared with.
         compare_to: Option<usize>,
     },
+    /// Prescribed displacements in static steps.
     Folding(Folding),
 }
 

@@ -17,6 +17,7 @@ use nalgebra::Vector3;
 /// The static-load stage.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StaticLoad {
+    /// Kind and name, for the recorder.
     pub stage: Stage,
     /// Nodal load pattern this stage adds [N per node] (empty: gravity only).
     pub loads: Vec<Vector3<f64>>,
@@ -24,6 +25,7 @@ pub struct StaticLoad {
     pub steps: usize,
     /// A failed step is halved up to this many times.
     pub max_cuts: u32,
+    /// Displacement control; `None`: load control (λ = 1 at the last step).
     pub control: Option<Control>,
     /// The start is under the structure's constant load (weight, dead loads) already, so
     /// only the pattern is stepped; otherwise (the unloaded shape) the constant load is
@@ -34,14 +36,20 @@ pub struct StaticLoad {
 /// Displacement control: the free direction `axis` of `node` moves by `displacement` [m].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Control {
+    /// Index of the controlled node.
     pub node: usize,
+    /// 0, 1, 2 for x, y, z.
     pub axis: usize,
+    /// Its total displacement over the stage [m].
     pub displacement: f64,
 }
 
+/// Key figures of a static-load stage.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct StaticSummary {
+    /// Load (or displacement) steps.
     pub steps: usize,
+    /// Newton iterations over all steps and sub-steps.
     pub newton_iterations: usize,
     /// Steps that needed sub-stepping.
     pub cut_steps: usize,

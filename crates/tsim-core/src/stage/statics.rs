@@ -5,6 +5,7 @@ use crate::tsm::Assembly;
 /// form-finding and of every folding step. It has a potential (strain energy less the
 /// load's work), so Newton on it is globalized by an energy line search.
 pub struct StaticEquilibrium<'a> {
+    /// The structure at the current iterate.
     pub asm: Assembly<'a>,
     /// External load on the free DOFs [N].
     pub load: Vec<f64>,

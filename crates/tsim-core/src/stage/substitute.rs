@@ -18,6 +18,7 @@ use std::sync::Arc;
 /// The real materials of every member.
 #[derive(Clone, Debug)]
 pub struct Materials {
+    /// Real constitutive law of each member, in member order.
     pub laws: Vec<Arc<dyn ForceLaw>>,
     /// Mass per unit rest length [kg/m] (density × area, in the chosen mass reading).
     pub linear_density: Vec<f64>,
@@ -55,16 +56,19 @@ impl Materials {
 pub struct SubstitutionSummary {
     /// Out-of-balance of the real-material structure at the form-found shape [N].
     pub residual: f64,
+    /// Largest |member force| [N].
     pub max_force: f64,
     /// Cable stretch λ = l/l0 range after substitution.
     pub cable_stretch: [f64; 2],
     /// Lowest eigenvalue of K_T (free DOFs) [N/m] and where it acts.
     pub lowest_stiffness: f64,
+    /// The direction its eigenvector moves most ("node `t3` direction z").
     pub lowest_stiffness_at: String,
     /// K_T positive definite beyond round-off: the lowest eigenvalue above 1e3 ε times the
     /// largest diagonal entry (an eigenvalue of a symmetric matrix is resolved to ~ε‖K‖;
     /// a prestress-stabilised mechanism of the paper's tower sits ~1e5 times above that).
     pub stable: bool,
+    /// Sum of the lumped nodal masses [kg].
     pub total_mass: f64,
 }
 
@@ -213,6 +217,7 @@ fn sparse_balanced_forces(model: &Model, dofs: &DofMap, positions: &[Vector3<f64
 /// Real-material elements and how well they balance at the form-found shape.
 #[derive(Clone, Debug)]
 pub struct Substituted {
+    /// The real laws with the rest lengths found.
     pub elements: Elements,
     /// max |out-of-balance force| on the free DOFs at the form-found shape [N].
     pub residual: f64,

@@ -20,13 +20,16 @@ use nalgebra::Vector3;
 /// A transient stage.
 #[derive(Clone, Debug)]
 pub struct Transient {
+    /// Kind and name, for the recorder.
     pub stage: Stage,
+    /// β, γ, Δt and step cuts.
     pub params: NewmarkParams,
     /// Duration [s].
     pub duration: f64,
     /// Rayleigh damping C = αM + βK (zero: undamped), the pipeline's to set from the
     /// eigen stage the config names.
     pub rayleigh: Rayleigh,
+    /// Which K the βK damping term uses.
     pub tangent: DampingTangent,
     /// Nodal loads and ground motion (the structure's constant load acts besides).
     pub loads: Loads,
@@ -77,7 +80,9 @@ impl Initial {
 /// Figures of a finished transient stage.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct TransientSummary {
+    /// Time steps of Δt, duration/Δt rounded.
     pub steps: usize,
+    /// Newton iterations of the converged steps and sub-steps.
     pub newton_iterations: usize,
     /// Tangent factorizations (fewer than iterations where they are reused).
     pub factorizations: usize,
@@ -86,11 +91,15 @@ pub struct TransientSummary {
     /// and `factorizations` (the converged sub-steps') leave out.
     #[serde(default)]
     pub cut_steps: usize,
+    /// Newton iterations of the failed attempts.
     #[serde(default)]
     pub failed_iterations: usize,
+    /// Tangent factorizations of the failed attempts.
     #[serde(default)]
     pub failed_factorizations: usize,
+    /// Largest kinetic energy over the steps [J].
     pub max_kinetic: f64,
+    /// Kinetic energy at the last step [J].
     pub final_kinetic: f64,
     /// max over steps of |KE + SE + D − W − E0| [J].
     pub max_balance_error: f64,
@@ -117,6 +126,7 @@ pub struct TransientSummary {
     pub settle_time: Option<f64>,
     /// Wall time of the stage, recording included [s].
     pub wall_seconds: f64,
+    /// Largest out-of-balance over the recorded steps.
     #[serde(flatten)]
     pub equilibrium: EquilibriumSummary,
 }

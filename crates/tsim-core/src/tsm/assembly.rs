@@ -8,15 +8,20 @@ use nalgebra::Vector3;
 /// Stages update the free coordinates from a Newton iterate and read forces and tangents;
 /// the buffers are reused across iterations and steps.
 pub struct Assembly<'a> {
+    /// Topology and supports.
     pub model: &'a Model,
+    /// Each member's law (and own rest length, unless `rest` replaces it).
     pub elements: &'a Elements,
+    /// Numbering of the free DOFs that Newton's iterate and tangent use.
     pub dofs: &'a DofMap,
     /// The rest length each member is evaluated with [m]: the elements' own, or those a
     /// stage sets as it changes them in time ([`Self::set_rest`]).
     pub rest: Vec<f64>,
+    /// Positions of every node [m], global frame.
     pub x: Vec<Vector3<f64>>,
+    /// Each member evaluated at `x` with `rest`.
     pub states: Vec<MemberState>,
-    /// Internal force over all 3n directions.
+    /// Internal (resisting) force over all 3n directions [N], flat 3n (node-major).
     pub p: Vec<f64>,
     /// Per node, its largest |coordinate|: what a length's round-off grows with ([`Self::scale`]).
     reach: Vec<f64>,
@@ -25,6 +30,7 @@ pub struct Assembly<'a> {
 }
 
 impl<'a> Assembly<'a> {
+    /// The structure at positions `x` [m], every member at its elements' rest length.
     pub fn new(model: &'a Model, elements: &'a Elements, dofs: &'a DofMap, x: Vec<Vector3<f64>>) -> Self {
         Self::with_rest_lengths(model, elements, dofs, x, &elements.rest)
     }

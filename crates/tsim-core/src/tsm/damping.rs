@@ -86,11 +86,15 @@ fn scatter(dofs: &DofMap, [a, b]: [usize; 2], f: &Vector3<f64>, out: &mut [f64])
 /// never negative. For small motions about a state it is β K_0 v: K_T's geometric part is
 /// left out, which is what makes it objective.
 pub struct ObjectiveDamping<'a> {
+    /// Topology: each member's end nodes.
     pub model: &'a Model,
+    /// Numbering of the free DOFs of `v`.
     pub dofs: &'a DofMap,
+    /// Each member at the state (length, unit vector e).
     pub states: &'a [MemberState],
+    /// Each member's modulus k = dN/dl [N/m], on its step's branch.
     pub moduli: &'a [DampingModulus],
-    /// Velocities of the free DOFs.
+    /// Velocities of the free DOFs [m/s].
     pub v: &'a [f64],
     /// Rayleigh's β [s].
     pub beta: f64,
@@ -211,6 +215,7 @@ pub struct EndSlots {
 }
 
 impl EndSlots {
+    /// The slots of every member of `model` under the numbering `dofs`.
     pub fn new(model: &Model, dofs: &DofMap) -> Self {
         let spare = dofs.len();
         let slots = (model.members.iter())
@@ -230,8 +235,11 @@ pub enum MemberDamping<'a> {
     /// [`ObjectiveDamping`]: β k r along the member, k its modulus, r its elastic extension
     /// rate (`rest_rate`: l̇0/l0 per member, empty where no rest length changes).
     Objective {
+        /// Each member's modulus k = dN/dl [N/m], on its step's branch.
         moduli: &'a [DampingModulus],
+        /// Rayleigh's β [s].
         beta: f64,
+        /// l̇0/l0 of each member [1/s].
         rest_rate: &'a [f64],
     },
     /// [`block_product`]'s: the member's block of β K (from [`scaled_blocks`]) times its

@@ -28,14 +28,18 @@ impl DofMap {
         DofMap { index, owner }
     }
 
+    /// Number of free DOFs.
     pub fn len(&self) -> usize {
         self.owner.len()
     }
 
+    /// Whether no direction is free.
     pub fn is_empty(&self) -> bool {
         self.owner.is_empty()
     }
 
+    /// Free index of direction `axis` (0 x, 1 y, 2 z) of `node`; `None` if supported or
+    /// prescribed.
     pub fn free(&self, node: usize, axis: usize) -> Option<usize> {
         self.index[3 * node + axis]
     }

@@ -29,6 +29,7 @@ use std::sync::Arc;
 /// Per-member constitutive data: the law and the non-stressed length it is evaluated with.
 #[derive(Clone, Debug)]
 pub struct Elements {
+    /// Constitutive law of each member, in member order (shared between members).
     pub laws: Vec<Arc<dyn ForceLaw>>,
     /// Rest (non-stressed) length l0 of each member [m].
     pub rest: Vec<f64>,
@@ -49,6 +50,7 @@ impl Elements {
 /// A member's state at one configuration.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct MemberState {
+    /// Current length l [m].
     pub length: f64,
     /// Unit vector from the first to the second node.
     pub dir: Vector3<f64>,

@@ -9,7 +9,9 @@ use nalgebra::Vector3;
 /// An axis-aligned box.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
+    /// The corner of least x, y, z [m].
     pub lo: Vector3<f64>,
+    /// The corner of greatest x, y, z [m].
     pub hi: Vector3<f64>,
 }
 
@@ -24,6 +26,7 @@ impl Aabb {
         }
     }
 
+    /// Whether the two boxes share a point (touching faces count).
     pub fn overlaps(&self, other: &Aabb) -> bool {
         (0..3).all(|k| self.lo[k] <= other.hi[k] && other.lo[k] <= self.hi[k])
     }

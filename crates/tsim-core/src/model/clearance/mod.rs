@@ -34,7 +34,9 @@ pub const GRID_FROM: usize = 64;
 pub enum Search {
     /// All pairs below [`GRID_FROM`] struts, the grid from there on.
     Auto,
+    /// Every non-adjacent pair, whatever the number of struts.
     AllPairs,
+    /// The uniform grid, whatever the number of struts.
     Grid,
 }
 
@@ -121,6 +123,7 @@ impl Struts {
         self.members.len()
     }
 
+    /// Whether the model has no strut.
     pub fn is_empty(&self) -> bool {
         self.members.is_empty()
     }

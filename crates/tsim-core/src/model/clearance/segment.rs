@@ -7,7 +7,9 @@ use nalgebra::Vector3;
 /// A segment from `p` to `q`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Segment {
+    /// First end [m].
     pub p: Vector3<f64>,
+    /// Second end [m].
     pub q: Vector3<f64>,
 }
 
@@ -29,6 +31,7 @@ pub struct Closest {
 const PARALLEL: f64 = 1e-14;
 
 impl Segment {
+    /// The segment from `p` to `q`.
     pub fn new(p: Vector3<f64>, q: Vector3<f64>) -> Self {
         Segment { p, q }
     }

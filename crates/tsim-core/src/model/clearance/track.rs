@@ -19,9 +19,12 @@ use super::{Aabb, Nearest, PairClearance, Segment, Struts};
 use nalgebra::Vector3;
 use std::sync::Arc;
 
+/// What happened between two struts (the module doc defines both).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EventKind {
+    /// Their clearance became ≤ 0.
     Touch,
+    /// One axis crossed the other between two steps.
     PassThrough,
 }
 
@@ -38,6 +41,7 @@ impl EventKind {
 /// A touch or pass-through of two struts.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Event {
+    /// Touch or pass-through.
     pub kind: EventKind,
     /// Member indices, the lower first.
     pub members: [usize; 2],
@@ -84,6 +88,7 @@ const BISECTIONS: usize = 60;
 const MEET: f64 = 1e-9;
 
 impl Tracker {
+    /// A tracker of `struts` that has observed no step yet.
     pub fn new(struts: Arc<Struts>) -> Self {
         // Room for every pair touching and crossing at once (all pairs), or eight per strut
         // (grid): a step then allocates only in an extreme case.
@@ -131,6 +136,7 @@ impl Tracker {
         &self.events
     }
 
+    /// Forgets the events seen so far (the touching pairs and the last step are kept).
     pub fn clear_events(&mut self) {
         self.events.clear();
     }
