@@ -494,6 +494,33 @@ fn duplicate_sweep_labels_are_rejected() {
     );
 }
 
+/// Axis names are part of every case id, a directory under --out (issue 29: `../../victim`
+/// wrote into another run's case, an absolute name anywhere): a name with a separator,
+/// `.` or `-`, two axes of one name, and a label too long for a file name are each
+/// refused at their line, before anything is written (`bad_config` checks that).
+#[test]
+fn axis_names_and_labels_cannot_leave_the_run_directory() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let long = "9".repeat(300);
+    for (from, to, field, needle) in [
+        ("name: cable", "name: ../../victim", "sweep.axes[0].name", "name: ../../victim"),
+        ("name: cable", "name: /tmp/elsewhere", "sweep.axes[0].name", "name: /tmp/elsewhere"),
+        ("name: zeta", "name: cable", "sweep.axes[1].name", "- name: cable"),
+        ("label: nylon", &format!("label: \"{long}\""), "sweep.axes[0].values[1].label", "label: \"999"),
+    ] {
+        let text = good.replacen(from, to, 1);
+        assert_ne!(text, good, "the fixture has `{from}`");
+        let (out, path) = bad_config(&text);
+        let err = String::from_utf8_lossy(&out.stderr);
+        // The duplicate is reported at the second axis' line.
+        let line = text.lines().enumerate().filter(|(_, l)| l.contains(needle)).map(|(i, _)| i + 1).last().unwrap();
+        assert!(
+            err.contains(&format!("{}:{line}", path.display())) && err.contains(&format!("`{field}`")),
+            "{to}: {err}"
+        );
+    }
+}
+
 /// Values that would run forever, overflow the stack or find nothing are rejected before
 /// any work, each at its line: a step longer than its stage, a bisection deeper than 30
 /// halvings (it recurses once per halving), negative or zero measure coefficients, a

@@ -69,13 +69,20 @@ fn value_line(text: &str, axis: &str, label: &str) -> Option<usize> {
     value_lines(text, axis, label).first().copied()
 }
 
+/// The line of the `nth` axis `name: axis` (1-based; nth from 0, for axes of one name).
+fn axis_line(text: &str, axis: &str, nth: usize) -> Option<usize> {
+    let name = format!("name: {axis}");
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| l.trim_start().trim_start_matches("- ").trim_start() == name)
+        .nth(nth)
+        .map(|(k, _)| k + 1)
+}
+
 /// Every `label:` line carrying `label` after the axis' `name:` (1-based).
 fn value_lines(text: &str, axis: &str, label: &str) -> Vec<usize> {
     let lines: Vec<&str> = text.lines().collect();
-    let Some(start) = lines
-        .iter()
-        .position(|l| l.trim_start().trim_start_matches("- ").trim_start() == format!("name: {axis}"))
-    else {
+    let Some(start) = axis_line(text, axis, 0).map(|l| l - 1) else {
         return Vec::new();
     };
     let quoted = [
@@ -187,6 +194,16 @@ pub fn expand(text: &str, origin: &str, allow_large: bool) -> Result<Expanded, C
 
 /// Empty axes and labels unfit for case ids.
 fn axis_errors(axes: &[SweepAxis], origin: &str, text: &str) -> Vec<ValueError> {
+    // The longest case id: every axis `name-label`, joined by `_` (checked once each
+    // name and label is within its own bound).
+    let longest: usize = axes
+        .iter()
+        .map(|a| a.name.len() + 1 + a.values.iter().map(|v| v.label.len()).max().unwrap_or(0))
+        .sum::<usize>()
+        + axes.len().saturating_sub(1);
+    let within_bounds = axes
+        .iter()
+        .all(|a| a.name.len() <= MAX_AXIS_NAME && a.values.iter().all(|v| v.label.len() <= MAX_LABEL));
     let mut errors = Vec::new();
     let mut error = |line: Option<usize>, field: String, message: String| {
         errors.push(ValueError {
@@ -197,6 +214,23 @@ fn axis_errors(axes: &[SweepAxis], origin: &str, text: &str) -> Vec<ValueError> 
         })
     };
     for (a, axis) in axes.iter().enumerate() {
+        // The name is part of every case id, a directory under --out: no separator, no
+        // `-` (it parts name from label), bounded, and one name per axis.
+        let name = &axis.name;
+        if name.is_empty() || name.len() > MAX_AXIS_NAME || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+            error(
+                axis_line(text, name, 0).filter(|_| !name.is_empty()),
+                format!("sweep.axes[{a}].name"),
+                format!("`{name}`: use 1–{MAX_AXIS_NAME} letters, digits and `_` (it names the case directories under --out)"),
+            );
+        } else if let Some(j) = axes[..a].iter().position(|b| b.name == *name) {
+            let nth = axes[..a].iter().filter(|b| b.name == *name).count();
+            error(
+                axis_line(text, name, nth),
+                format!("sweep.axes[{a}].name"),
+                format!("`{name}` is also the name of sweep.axes[{j}]: each axis needs its own"),
+            );
+        }
         if axis.values.is_empty() {
             error(None, format!("sweep.axes[{a}].values"), "is empty; give at least one value".into());
         }
@@ -215,19 +249,34 @@ fn axis_errors(axes: &[SweepAxis], origin: &str, text: &str) -> Vec<ValueError> 
                     ),
                 );
             }
-            if v.label.is_empty() || !v.label.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '.') {
+            let safe = |c: char| c.is_ascii_alphanumeric() || c == '-' || c == '.';
+            if v.label.is_empty() || v.label.len() > MAX_LABEL || !v.label.chars().all(safe) {
                 // An empty label would match every `label:` line.
                 let line = (!v.label.is_empty()).then(|| value_line(text, &axis.name, &v.label)).flatten();
                 error(
                     line,
                     format!("sweep.axes[{a}].values[{i}].label"),
-                    format!("`{}`: use letters, digits, `-` and `.` only", v.label),
+                    format!("`{}`: use 1–{MAX_LABEL} letters, digits, `-` and `.`", v.label),
                 );
             }
         }
     }
+    if within_bounds && longest > MAX_CASE_ID {
+        error(
+            None,
+            "sweep.axes".into(),
+            format!("case ids would be up to {longest} characters (`<name>-<label>` of every axis, joined by `_`); a file name holds {MAX_CASE_ID}: shorten the axis names or labels"),
+        );
+    }
     errors
 }
+
+/// Longest axis name and value label: together they name a case's directory.
+const MAX_AXIS_NAME: usize = 32;
+const MAX_LABEL: usize = 64;
+/// Longest case id, a directory name: the 255 bytes of a file name on Linux and macOS
+/// file systems, less room for the temporary names tsim writes beside it.
+const MAX_CASE_ID: usize = 200;
 
 /// (axis name, value label) of each axis' `chosen` value.
 fn labels(axes: &[SweepAxis], chosen: &[usize]) -> Vec<(String, String)> {
