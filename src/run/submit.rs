@@ -45,6 +45,9 @@ pub struct Submitted {
 /// every case is complete and every manifest written (nothing to do).
 pub fn submit(name: &str, cases: &[Case], opts: &SubmitOptions) -> Result<Option<Submitted>, String> {
     let out = std::path::absolute(&opts.out).map_err(|e| format!("{}: {e}", opts.out.display()))?;
+    for (what, path) in [("--out", out.as_path()), ("the config", opts.config.as_path())] {
+        one_line(what, path)?;
+    }
     let dir = out.join(name);
     std::fs::create_dir_all(dir.join("slurm")).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     let earlier = Plan::read(&dir)?;
@@ -116,6 +119,18 @@ pub fn ranges(ids: &[usize]) -> String {
         k += 1;
     }
     parts.join(",")
+}
+
+/// Err when `path` has a control character (a newline): the batch scripts carry the run
+/// directory in `#SBATCH` lines and a comment, where a newline would start a command that
+/// every array task runs.
+fn one_line(what: &str, path: &Path) -> Result<(), String> {
+    match path.to_string_lossy().chars().any(char::is_control) {
+        true => Err(format!(
+            "{what} {path:?} has a control character (a newline?): Slurm batch scripts cannot hold it; choose a path without one"
+        )),
+        false => Ok(()),
+    }
 }
 
 /// A path as one shell word.
@@ -202,6 +217,13 @@ mod tests {
         assert_eq!(ranges(&[0, 1, 2, 3]), "0-3");
         assert_eq!(ranges(&[1, 4, 5, 7]), "1,4-5,7");
         assert_eq!(ranges(&[6]), "6");
+    }
+
+    #[test]
+    fn a_path_with_a_newline_is_refused() {
+        assert!(one_line("--out", Path::new("/runs/a b")).is_ok());
+        let err = one_line("--out", Path::new("/runs/x\ntouch /tmp/pwned")).unwrap_err();
+        assert!(err.contains("--out") && err.contains("control character"), "{err}");
     }
 
     #[test]
