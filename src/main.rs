@@ -11,6 +11,18 @@ use tsim::run::{
     SubmitOptions, Tally, EXIT_INTERRUPTED,
 };
 
+/// A write to stdout, with a reader that stopped early (`| head`: a closed pipe) taken
+/// as the end of the output, not as an error.
+fn unless_closed(written: std::io::Result<()>) -> std::io::Result<()> {
+    match written {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        other => other,
+    }
+}
+
+/// Most cases `tsim run` runs at once: each is a thread; far above any one machine's cores.
+const MAX_JOBS: i64 = 1024;
+
 #[derive(Parser)]
 #[command(
     name = "tsim",
@@ -33,9 +45,10 @@ enum Command {
         /// Output root; cases go to OUT/<name>/<case id>/.
         #[arg(long, default_value = "runs")]
         out: PathBuf,
-        /// Cases run at once [default: SLURM_CPUS_PER_TASK, else the available cores].
-        #[arg(long)]
-        jobs: Option<usize>,
+        /// Cases run at once [default: SLURM_CPUS_PER_TASK, else the available cores;
+        /// at most 1024, and never more threads than cases to run].
+        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=MAX_JOBS))]
+        jobs: Option<u16>,
         /// Rerun cases that are already complete.
         #[arg(long)]
         force: bool,
@@ -270,7 +283,7 @@ fn main() -> ExitCode {
         } => {
             let opts = RunOptions {
                 out,
-                jobs: jobs.unwrap_or_else(default_jobs),
+                jobs: jobs.map_or_else(default_jobs, usize::from),
                 force,
                 quiet,
                 only,
@@ -285,7 +298,12 @@ fn main() -> ExitCode {
 fn schema_command(out: Option<&Path>) -> ExitCode {
     let schema = json_schema();
     match out {
-        None => print!("{schema}"),
+        None => {
+            if let Err(e) = unless_closed(std::io::Write::write_all(&mut std::io::stdout().lock(), schema.as_bytes())) {
+                eprintln!("error: cannot write the schema: {e}");
+                return ExitCode::from(2);
+            }
+        }
         Some(path) => {
             if let Err(e) = std::fs::write(path, schema) {
                 eprintln!("error: cannot write {}: {e}", path.display());
@@ -298,29 +316,42 @@ fn schema_command(out: Option<&Path>) -> ExitCode {
 
 /// `tsim check`: each case's id, what is on disk for it and its estimates, then the run's.
 fn check_command(config: &Path, out: &Path, allow_large: bool) -> ExitCode {
-    let Expanded { name, cases, limits } = match load(config, allow_large) {
+    let expanded = match load(config, allow_large) {
         Ok(x) => x,
         Err(e) => {
             report(&e);
             return ExitCode::from(2);
         }
     };
-    let dir = out.join(&name);
-    println!("{}: {} case(s) into {}/", config.display(), cases.len(), dir.display());
+    match unless_closed(print_check(config, out, &expanded, &mut std::io::stdout().lock())) {
+        Err(e) => {
+            eprintln!("error: cannot write the listing: {e}");
+            ExitCode::from(2)
+        }
+        Ok(()) => ExitCode::SUCCESS,
+    }
+}
+
+/// The listing of `tsim check` into `w`.
+fn print_check(config: &Path, out: &Path, expanded: &Expanded, w: &mut impl std::io::Write) -> std::io::Result<()> {
+    let Expanded { name, cases, limits } = expanded;
+    let dir = out.join(name);
+    writeln!(w, "{}: {} case(s) into {}/", config.display(), cases.len(), dir.display())?;
     let width = cases.iter().map(|c| c.id.len()).max().unwrap_or(0);
     let mut counts = std::collections::BTreeMap::new();
-    for c in &cases {
+    for c in cases {
         let state = OnDisk::of(c, &dir.join(&c.id)).as_str();
         *counts.entry(state).or_insert(0) += 1;
-        println!(
+        writeln!(
+            w,
             "  {:width$}  {state:10}  output {}, peak memory {}",
             c.id,
             bytes_text(c.estimate.output),
             bytes_text(c.estimate.memory)
-        );
+        )?;
     }
     let counts: Vec<String> = counts.iter().map(|(s, n)| format!("{n} {s}")).collect();
-    println!("cases: {} (a run reuses the complete ones)", counts.join(", "));
+    writeln!(w, "cases: {} (a run reuses the complete ones)", counts.join(", "))?;
     let output: f64 = cases.iter().map(|c| c.estimate.output).sum();
     let memory = cases.iter().map(|c| c.estimate.memory).fold(0.0, f64::max);
     let limit = |b: f64| {
@@ -330,14 +361,14 @@ fn check_command(config: &Path, out: &Path, allow_large: bool) -> ExitCode {
             "none: --allow-large".into()
         }
     };
-    println!(
+    writeln!(
+        w,
         "estimated: output {} in all, uncompressed (limit {}); peak memory {} per case (limit {}; cases running at once add up)",
         bytes_text(output),
         limit(limits.max_output),
         bytes_text(memory),
         limit(limits.max_memory)
-    );
-    ExitCode::SUCCESS
+    )
 }
 
 /// `tsim run`: every case of `config` (or this shard's); exit 1 when one failed, 130 when

@@ -506,18 +506,74 @@ fn axis_names_and_labels_cannot_leave_the_run_directory() {
         ("name: cable", "name: ../../victim", "sweep.axes[0].name", "name: ../../victim"),
         ("name: cable", "name: /tmp/elsewhere", "sweep.axes[0].name", "name: /tmp/elsewhere"),
         ("name: zeta", "name: cable", "sweep.axes[1].name", "- name: cable"),
-        ("label: nylon", &format!("label: \"{long}\""), "sweep.axes[0].values[1].label", "label: \"999"),
+        (
+            "label: nylon",
+            &format!("label: \"{long}\""),
+            "sweep.axes[0].values[1].label",
+            "label: \"999",
+        ),
     ] {
         let text = good.replacen(from, to, 1);
         assert_ne!(text, good, "the fixture has `{from}`");
         let (out, path) = bad_config(&text);
         let err = String::from_utf8_lossy(&out.stderr);
         // The duplicate is reported at the second axis' line.
-        let line = text.lines().enumerate().filter(|(_, l)| l.contains(needle)).map(|(i, _)| i + 1).last().unwrap();
+        let line = text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| l.contains(needle))
+            .map(|(i, _)| i + 1)
+            .last()
+            .unwrap();
         assert!(
             err.contains(&format!("{}:{line}", path.display())) && err.contains(&format!("`{field}`")),
             "{to}: {err}"
         );
+    }
+}
+
+/// `tsim check ... | head` and `tsim schema | head` end quietly when the reader stops
+/// (issue 29: a panic, exit 101): the listing of a 4000-case sweep (some 250 kB, beyond
+/// a pipe's 64 kB buffer) read for one line, the pipe then closed.
+#[test]
+fn a_reader_that_stops_early_is_not_an_error() {
+    use std::io::BufRead;
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let values: String = (0..4000)
+        .map(|k| format!("        - {{ label: v{k}, set: {{ outputs.every: 1 }} }}\n"))
+        .collect();
+    let text = format!(
+        "{}sweep:\n  axes:\n    - name: many\n      values:\n{values}",
+        good.split("sweep:").next().unwrap()
+    );
+    let dir = scratch("pipe");
+    let path = dir.path().join("many.yaml");
+    std::fs::write(&path, text).unwrap();
+    let path = path.to_str().unwrap();
+    for args in [&["check", path][..], &["schema"][..]] {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_tsim"));
+        cmd.args(args).stdout(Stdio::piped()).stderr(Stdio::piped());
+        let mut child = spawn(&mut cmd);
+        let mut first = String::new();
+        std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut first).unwrap();
+        assert!(!first.is_empty(), "{args:?} printed nothing");
+        // The reader is dropped here: the pipe is closed with most of the listing unread.
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}
+
+/// `--jobs` past 1024 (each is a thread; `--jobs 100000` made 100 000 before any work)
+/// or 0 is a usage error naming the range.
+#[test]
+fn jobs_are_bounded() {
+    for jobs in ["0", "100000"] {
+        let out = tsim(&["run", SWEEP, "--jobs", jobs, "--out", "/nonexistent/never-written"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains("--jobs") && err.contains("1..=1024"), "{err}");
     }
 }
 

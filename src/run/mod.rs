@@ -260,7 +260,9 @@ fn run_cases(dir: &Path, cases: &[&Case], opts: &RunOptions) -> std::io::Result<
         .count();
     let progress = Progress::new(to_run, opts.quiet);
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(opts.jobs.max(1))
+        // No more workers than cases to run: each is a thread (and `--jobs 100000` was
+        // 100 000 of them before any work).
+        .num_threads(opts.jobs.clamp(1, to_run.max(1)))
         .build()
         .map_err(std::io::Error::other)?;
     // Output writer threads only when a core is left over for them.
