@@ -668,6 +668,16 @@ fn csv_table_errors_name_file_and_line() {
     let e = load_errors(&path);
     eprintln!("{e}");
     assert!(e.contains(&csv) && e.contains("at least 2"), "{e}");
+    // A 200 kB row (issue 29: quoted whole on stderr) is quoted as a short excerpt.
+    let (path, _) = config("wide", Some(&format!("0,0\n0.1,{}\n0.2,0\n", "7;".repeat(100_000))));
+    let e = load_errors(&path);
+    assert!(e.contains("is not two numbers") && e.len() < 1000, "{} bytes", e.len());
+    // A FIFO as a table (issue 29: `check` waited forever on it) is refused at once.
+    let (path, csv) = config("fifo", None);
+    let name = std::ffi::CString::new(csv.as_str()).unwrap();
+    assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o600) }, 0);
+    let e = load_errors(&path);
+    assert!(e.contains(&format!("cannot read `{csv}`: is not a regular file")), "{e}");
 }
 
 /// Bad loads, ground motion and initial conditions are value errors at their lines: an

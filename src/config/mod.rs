@@ -4,6 +4,7 @@
 //! field and the range, and all of them are reported, each at its line.
 
 mod build;
+mod input;
 mod json_schema;
 mod limits;
 mod loading;
@@ -16,6 +17,7 @@ mod syntax;
 mod tables;
 mod validate;
 
+pub use input::{excerpt, read_input, MAX_INPUT_BYTES};
 pub use json_schema::{json_schema, SCHEMA_FILE};
 pub use limits::{bytes_text, Estimate, LimitSpec, Limits, Part, MAX_MEMORY_GB, MAX_OUTPUT_GB, MAX_STEPS};
 pub use loading::*;

@@ -3,6 +3,7 @@
 //! the resolved config (`case.yaml`) holds the values the case ran with and no later step
 //! touches the file.
 
+use super::input::{excerpt, read_input};
 use super::loading::TimeFunctionSpec;
 use super::schema::CaseConfig;
 use super::validate::{FieldError, ValueError};
@@ -46,7 +47,8 @@ impl CaseConfig {
             };
             let field = format!("{field}.table.file");
             let path = dir.join(name);
-            match std::fs::read_to_string(&path) {
+            let text = read_input(&path).and_then(|b| String::from_utf8(b).map_err(|_| "is not UTF-8 text; save it as UTF-8".into()));
+            match text {
                 Ok(text) => match parse_table(&text, &path.display().to_string(), &field) {
                     Ok(read) => (*points, *file) = (read, None),
                     Err(e) => errors.extend(e.into_iter().map(TableError::Csv)),
@@ -99,7 +101,10 @@ pub fn parse_table(text: &str, file: &str, field: &str) -> Result<Vec<[f64; 2]>,
             _ => {
                 errors.push(error(
                     Some(line),
-                    format!("row `{row}` is not two numbers; write each row as `time, value` (comma separated)"),
+                    format!(
+                        "row `{}` is not two numbers; write each row as `time, value` (comma separated)",
+                        excerpt(row)
+                    ),
                 ));
                 continue;
             }
@@ -107,7 +112,7 @@ pub fn parse_table(text: &str, file: &str, field: &str) -> Result<Vec<[f64; 2]>,
         if !(t.is_finite() && f.is_finite()) {
             errors.push(error(
                 Some(line),
-                format!("row `{row}` is not finite; every time and value must be a finite number"),
+                format!("row `{}` is not finite; every time and value must be a finite number", excerpt(row)),
             ));
             continue;
         }

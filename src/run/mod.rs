@@ -197,7 +197,7 @@ pub fn load(path: &Path, allow_large: bool) -> Result<Expanded, ConfigError> {
         file: origin.clone(),
         message,
     };
-    let bytes = std::fs::read(path).map_err(|e| io(e.to_string()))?;
+    let bytes = crate::config::read_input(path).map_err(io)?;
     let text = String::from_utf8(bytes).map_err(|e| {
         let at = e.utf8_error().valid_up_to();
         let line = 1 + e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count();
