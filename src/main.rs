@@ -20,8 +20,24 @@ fn unless_closed(written: std::io::Result<()>) -> std::io::Result<()> {
     }
 }
 
-/// Most cases `tsim run` runs at once: each is a thread; far above any one machine's cores.
-const MAX_JOBS: i64 = 1024;
+/// Most cases `tsim run` runs at once per core: each is a thread, and more only queue for
+/// the same cores.
+const JOBS_PER_CORE: usize = 4;
+
+/// `--jobs` (or the default), capped at [`JOBS_PER_CORE`] × the cores here with a warning:
+/// `--jobs 100000` built 100 000 threads before any work.
+fn capped_jobs(jobs: Option<u64>) -> usize {
+    let Some(asked) = jobs else { return default_jobs() };
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let cap = JOBS_PER_CORE * cores;
+    match usize::try_from(asked) {
+        Ok(n) if n <= cap => n,
+        _ => {
+            eprintln!("warning: --jobs {asked} capped at {cap} ({JOBS_PER_CORE} × the {cores} cores here)");
+            cap
+        }
+    }
+}
 
 #[derive(Parser)]
 #[command(
@@ -46,9 +62,9 @@ enum Command {
         #[arg(long, default_value = "runs")]
         out: PathBuf,
         /// Cases run at once [default: SLURM_CPUS_PER_TASK, else the available cores;
-        /// at most 1024, and never more threads than cases to run].
-        #[arg(long, value_parser = clap::value_parser!(u16).range(1..=MAX_JOBS))]
-        jobs: Option<u16>,
+        /// at most 4 per core, and never more than the cases to run].
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+        jobs: Option<u64>,
         /// Rerun cases that are already complete.
         #[arg(long)]
         force: bool,
@@ -283,7 +299,7 @@ fn main() -> ExitCode {
         } => {
             let opts = RunOptions {
                 out,
-                jobs: jobs.map_or_else(default_jobs, usize::from),
+                jobs: capped_jobs(jobs),
                 force,
                 quiet,
                 only,
