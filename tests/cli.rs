@@ -580,6 +580,40 @@ fn jobs_are_capped() {
     assert!(err.contains(&format!("--jobs 100000 capped at {}", 4 * cores)), "{err}");
 }
 
+/// Links planted inside --out are not written through (issue 29: a case's result.h5 or
+/// case.yaml linked to a file outside was overwritten): a case whose files are links gets
+/// fresh files and leaves the targets alone; a case directory that is a link fails, naming
+/// it, with nothing written where it points; the other cases complete.
+#[test]
+fn planted_links_are_not_followed() {
+    let dir = scratch("links");
+    let (out, victim) = (dir.path().join("runs"), dir.path().join("victim"));
+    std::fs::create_dir_all(&victim).unwrap();
+    for name in ["case.yaml", "result.h5"] {
+        std::fs::write(victim.join(name), "precious").unwrap();
+    }
+    let run = out.join("small");
+    let files = run.join("cable-rubber_zeta-0.05");
+    std::fs::create_dir_all(&files).unwrap();
+    for name in ["case.yaml", "result.h5"] {
+        std::os::unix::fs::symlink(victim.join(name), files.join(name)).unwrap();
+    }
+    std::os::unix::fs::symlink(&victim, run.join("cable-nylon_zeta-0.1")).unwrap();
+    let result = tsim(&["run", SWEEP, "--quiet", "--out", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(1), "one case fails: {err}");
+    assert!(err.contains("cable-nylon_zeta-0.1") && err.contains("is a symbolic link"), "{err}");
+    for name in ["case.yaml", "result.h5"] {
+        assert_eq!(std::fs::read_to_string(victim.join(name)).unwrap(), "precious", "{name}");
+        assert!(!files.join(name).symlink_metadata().unwrap().file_type().is_symlink());
+    }
+    let names: Vec<_> = std::fs::read_dir(&victim).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(names.len(), 2, "written into the linked directory: {names:?}");
+    let outcomes = outcomes(&out);
+    let complete = outcomes.iter().filter(|o| o["status"] == "complete").count();
+    assert_eq!(complete, 3, "{outcomes:?}");
+}
+
 /// Values that would run forever, overflow the stack or find nothing are rejected before
 /// any work, each at its line: a step longer than its stage, a bisection deeper than 30
 /// halvings (it recurses once per halving), negative or zero measure coefficients, a

@@ -13,12 +13,40 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let dir = path.parent().unwrap_or(Path::new("."));
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    let mut file = std::fs::File::create(&tmp)?;
+    // A fresh file, never through a link planted at the temporary name: O_EXCL does not
+    // follow links, and a leftover of a killed run is removed first (the entry, not what
+    // it may point to).
+    let _ = std::fs::remove_file(&tmp);
+    let mut file = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
     file.write_all(bytes)?;
     file.sync_all()?;
     drop(file);
     std::fs::rename(&tmp, path)?;
     std::fs::File::open(dir)?.sync_all()
+}
+
+/// The files a case writes in its directory.
+const CASE_FILES: [&str; 4] = ["case.yaml", "result.h5", "replay.mcap", "outcome.json"];
+
+/// Makes `dir` safe to write a case into: Err when the directory is a symbolic link (its
+/// files would land wherever it points, outside --out); a link standing in place of one
+/// of the case's files is removed (the link, never its target), so that the file is
+/// created afresh inside the directory rather than written through the link.
+pub fn unlink_planted(dir: &Path) -> Result<(), String> {
+    let is_link = |p: &Path| p.symlink_metadata().is_ok_and(|m| m.file_type().is_symlink());
+    if is_link(dir) {
+        return Err(format!(
+            "{} is a symbolic link: a case writes only inside its run directory; remove the link",
+            dir.display()
+        ));
+    }
+    for name in CASE_FILES {
+        let path = dir.join(name);
+        if is_link(&path) {
+            std::fs::remove_file(&path).map_err(|e| format!("cannot remove the link {}: {e}", path.display()))?;
+        }
+    }
+    Ok(())
 }
 
 /// The output files a finished case wrote, with their lengths in bytes.

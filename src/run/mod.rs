@@ -331,6 +331,15 @@ fn run_one(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Ca
     if interrupted() {
         return not_started(case, CaseStatus::Interrupted);
     }
+    // Nothing, outcome.json included, is written through a link out of the run directory.
+    if let Err(reason) = files::unlink_planted(dir) {
+        let outcome = CaseOutcome {
+            reason: Some(reason),
+            ..not_started(case, CaseStatus::Failed)
+        };
+        progress.done(&case.id, &outcome.describe(), 0.0);
+        return outcome;
+    }
     let start = Instant::now();
     let result = execute(case, dir, background, progress);
     let wall_seconds = start.elapsed().as_secs_f64();
