@@ -116,7 +116,7 @@ enum Command {
     /// sharded run (`--shard`, `tsim submit`) it first merges the shards: summary.csv and
     /// summary.json from every case directory, the manifests checked against the plan
     /// (warnings). Exits 1 when a case is missing or not complete (listed; the files are
-    /// still written).
+    /// still written), 2 while a `tsim run` holds the directory.
     Collect {
         /// A run directory (OUT/<name>, holding summary.json).
         run_dir: PathBuf,

@@ -614,6 +614,27 @@ fn planted_links_are_not_followed() {
     assert_eq!(complete, 3, "{outcomes:?}");
 }
 
+/// `tsim collect` takes the run's lock (issue 29: a run re-creating a result.h5 that
+/// collect was reading failed, its earlier file left truncated): while a live run holds
+/// the directory collect refuses, naming the holder; once it is free, collect writes.
+#[test]
+fn collect_waits_for_no_run() {
+    let dir = scratch("collect-lock");
+    let out = dir.path().to_str().unwrap();
+    assert!(tsim(&["run", SWEEP, "--quiet", "--out", out]).status.success());
+    let run = dir.path().join("small");
+    // A lock held by a live process on this host: this test's own.
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap();
+    std::fs::write(run.join(".lock"), format!("{} {}", host.trim(), std::process::id())).unwrap();
+    let held = tsim(&["collect", run.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&held.stderr);
+    assert_eq!(held.status.code(), Some(2), "{err}");
+    assert!(err.contains("is in use") && err.contains(&std::process::id().to_string()), "{err}");
+    std::fs::remove_file(run.join(".lock")).unwrap();
+    let free = tsim(&["collect", run.to_str().unwrap()]);
+    assert!(free.status.success(), "{}", String::from_utf8_lossy(&free.stderr));
+}
+
 /// Values that would run forever, overflow the stack or find nothing are rejected before
 /// any work, each at its line: a step longer than its stage, a bisection deeper than 30
 /// halvings (it recurses once per halving), negative or zero measure coefficients, a

@@ -21,9 +21,13 @@ pub struct Collected {
     pub missing: Vec<(String, String)>,
 }
 
-/// Collects `dir` (a run directory holding `summary.json`) into `dir/collected.h5`.
-/// Err: the directory holds no readable `summary.json` (nothing is written).
+/// Collects `dir` (a run directory holding `summary.json`) into `dir/collected.h5`,
+/// holding the run's lock while it reads: a `tsim run` re-creating a case's result.h5
+/// meanwhile found it open and failed, its earlier file left truncated.
+/// Err: the directory is in use by a run, or holds no readable `summary.json` (nothing is
+/// written).
 pub fn collect(dir: &Path) -> Result<Collected, String> {
+    let _lock = super::files::RunLock::acquire(dir).map_err(|e| e.to_string())?;
     let summary = dir.join("summary.json");
     let text =
         std::fs::read_to_string(&summary).map_err(|e| format!("{}: {e} (a run directory of `tsim run` holds one)", summary.display()))?;
