@@ -733,11 +733,13 @@ fn resume_verifies_outputs_and_a_used_directory_is_locked() {
     std::fs::remove_file(dir.join(".lock")).unwrap();
 }
 
-/// SIGINT and SIGTERM in the middle of a run: exit code 130, every case complete or
-/// marked `interrupted` (in the summary and in its result.h5, which opens as a finished
-/// file), and a rerun completes the sweep. A long deployment (400 s of the small prism,
-/// about a second per case, one case at a time, every 1000th step recorded) keeps the
-/// run busy when the signal comes 0.5 s in.
+/// SIGINT and SIGTERM in the middle of a run, and SIGINT twice 5 ms apart (issue 29:
+/// the second exited at once, leaving a result.h5 `running`, no outcome, a stale lock):
+/// exit code 130, every case complete or marked `interrupted` (in the summary and in its
+/// result.h5, which opens as a finished file), no lock left, and a rerun completes the
+/// sweep. A long deployment (400 s of the small prism, about a second per case, one case
+/// at a time, every 1000th step recorded) keeps the run busy when the signal comes 0.5 s
+/// in.
 #[test]
 fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
     let good = std::fs::read_to_string(SWEEP).unwrap();
@@ -745,8 +747,8 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
         .replace("deployment:\n  duration: 0.1", "deployment:\n  duration: 400.0")
         .replace("sweep:", "outputs: { every: 1000 }\nsweep:");
     assert_ne!(text, good);
-    for signal in [libc::SIGINT, libc::SIGTERM] {
-        let scratch_dir = scratch(&format!("signal{signal}"));
+    for (signal, count) in [(libc::SIGINT, 1), (libc::SIGTERM, 1), (libc::SIGINT, 2)] {
+        let scratch_dir = scratch(&format!("signal{signal}x{count}"));
         let dir = scratch_dir.path();
         let path = dir.join("long.yaml");
         std::fs::write(&path, &text).unwrap();
@@ -768,7 +770,12 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
         // libc, not the `kill` program: a minimal Debian has no procps (found by the
         // clean-machine transcript, docs/transcripts/clean_debian.md).
         let pid = libc::pid_t::try_from(child.id()).unwrap();
-        assert_eq!(unsafe { libc::kill(pid, signal) }, 0, "kill {pid}");
+        for k in 0..count {
+            if k > 0 {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            assert_eq!(unsafe { libc::kill(pid, signal) }, 0, "kill {pid}");
+        }
         let output = child.wait_with_output().unwrap();
         assert_eq!(output.status.code(), Some(130), "{signal}");
         // It says so, names the complete cases and what a rerun does.
@@ -791,6 +798,7 @@ fn a_signal_interrupts_cleanly_and_a_rerun_finishes() {
             }
         }
         assert!(o.iter().all(|c| c["status"] == "complete" || c["status"] == "interrupted"), "{o:?}");
+        assert!(!dir.join("small/.lock").exists(), "the lock is released");
         let again = tsim(&args);
         assert!(again.status.success(), "{}", String::from_utf8_lossy(&again.stderr));
         let o = outcomes(dir);
