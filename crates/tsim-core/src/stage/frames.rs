@@ -1,5 +1,6 @@
 use crate::dynamics::{Energy, Newmark};
 use crate::model::clearance::Tracker;
+use crate::model::{Model, AXES};
 use crate::record::{Constraints, Frame, FrameClearance, FrameModes, RecordResult, Recorder, Stage};
 use crate::structure::Structure;
 use crate::tsm::{Assembly, DofMap};
@@ -179,6 +180,11 @@ impl FrameBuilder {
         self.forces.extend(asm.states.iter().map(|s| s.force));
         self.lengths.clear();
         self.lengths.extend(asm.states.iter().map(|s| s.length));
+        // The state was checked before it was committed; what is derived from it here
+        // (reactions, their sum) is too, so that no complete case holds a non-finite value.
+        if let Some(what) = non_finite_loads(asm.model, &self.constraints, &self.reactions, applied, error) {
+            return Err(format!("step {step}: {what} is not finite; the stage stops rather than record it").into());
+        }
         let nearest = self.clearance.as_mut().map(|t| t.observe(&asm.x, step, time));
         let recorded = recorder.frame(&Frame {
             step,
@@ -203,6 +209,21 @@ impl FrameBuilder {
         }
         recorded
     }
+}
+
+/// The first non-finite value a frame derives from a finite state, named ("the reaction
+/// at node `b0` direction z", "the applied load on node `t3`", "the equilibrium error").
+fn non_finite_loads(model: &Model, constraints: &Constraints, reactions: &[f64], applied: &[Vector3<f64>], error: f64) -> Option<String> {
+    if let Some(c) = reactions.iter().zip(&constraints.0).find(|(r, _)| !r.is_finite()).map(|(_, c)| c) {
+        return Some(format!(
+            "the reaction at node `{}` direction {}",
+            model.nodes[c.node].id, AXES[c.axis]
+        ));
+    }
+    if let Some(n) = applied.iter().position(|f| !f.iter().all(|x| x.is_finite())) {
+        return Some(format!("the applied load on node `{}`", model.nodes[n].id));
+    }
+    (!error.is_finite()).then(|| "the equilibrium error".to_string())
 }
 
 /// The first non-finite value of a converged state, named ("node `t3` position z",
@@ -230,7 +251,7 @@ pub fn non_finite(asm: &Assembly, velocities: Option<&[f64]>, energy: &Energy) -
         .flat_map(|n| (0..3).map(move |a| (n, a)))
         .find(|&(n, a)| !asm.x[n][a].is_finite())
     {
-        return Some(format!("node `{}` position {}", model.nodes[n].id, crate::model::AXES[a]));
+        return Some(format!("node `{}` position {}", model.nodes[n].id, AXES[a]));
     }
     if let Some(i) = velocities.and_then(|v| v.iter().position(|v| !v.is_finite())) {
         return Some(format!("velocity of {}", asm.dofs.label(model, i)));
@@ -373,6 +394,36 @@ mod tests {
         assert!(frames.check.max_relative <= 1e-10);
         // The frame records what it was given.
         assert_eq!(last.applied, applied);
+    }
+
+    /// A non-finite reaction, applied load or equilibrium error is found and named; finite
+    /// ones pass.
+    #[test]
+    fn names_a_non_finite_reaction_or_load() {
+        let model = TowerSpec {
+            struts: 3,
+            ..TowerSpec::paper()
+        }
+        .build();
+        let constraints = Constraints::new(&model, &[]);
+        let mut reactions = vec![1.0; constraints.len()];
+        let mut applied = vec![Vector3::new(0.0, 0.0, -1.0); model.node_count()];
+        assert_eq!(non_finite_loads(&model, &constraints, &reactions, &applied, 0.0), None);
+        assert_eq!(
+            non_finite_loads(&model, &constraints, &reactions, &applied, f64::NAN).as_deref(),
+            Some("the equilibrium error")
+        );
+        applied[2].x = f64::INFINITY;
+        assert_eq!(
+            non_finite_loads(&model, &constraints, &reactions, &applied, 0.0).unwrap(),
+            format!("the applied load on node `{}`", model.nodes[2].id)
+        );
+        reactions[1] = f64::NAN;
+        let c = constraints.0[1];
+        assert_eq!(
+            non_finite_loads(&model, &constraints, &reactions, &applied, 0.0).unwrap(),
+            format!("the reaction at node `{}` direction {}", model.nodes[c.node].id, AXES[c.axis])
+        );
     }
 
     /// Each kind of non-finite value is found and named; a finite state passes.
