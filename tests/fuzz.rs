@@ -421,3 +421,77 @@ fn generated_node_lists_never_panic_and_every_rejection_has_a_line() {
     );
     assert!(accepted > 0 && rejected > 0, "{accepted} accepted, {rejected} rejected");
 }
+
+/// An axis name or value label: ordinary (`usual`, a regex), or any of the strings that once escaped --out
+/// or broke a run (issue 29: separators, `..`, absolute paths, control characters, empty,
+/// 300 and 70 000 characters, non-ASCII).
+fn label_text(usual: &'static str, e: u32) -> impl Strategy<Value = String> {
+    prop_oneof![
+        USUAL => usual,
+        e => prop::sample::select(vec![
+            "", ".", "..", "../../victim", "/tmp/x", "a/b", "a\\b", "a\nb", "a\u{0}b", "é", "a b", "-", "_", "a-b", "a_b",
+        ])
+        .prop_map(str::to_string),
+        e => "[ -~]{0,40}",
+        e => prop::sample::select(vec![300_usize, 70_000]).prop_map(|n| "9".repeat(n)),
+    ]
+}
+
+/// Sweeps of 1–3 axes of 1–3 values with generated names and labels, through `tsim
+/// check`'s path over the small sweep fixture's base: none may panic, every rejection
+/// says where, and every case id an accepted sweep makes is one plain directory name
+/// (no separator, not `.` or `..`, at most 200 bytes), so that no case writes outside
+/// --out.
+#[test]
+fn generated_sweep_names_stay_inside_the_run_directory() {
+    let fixture = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/small_sweep.yaml")).unwrap();
+    let base = fixture.split("sweep:").next().unwrap().to_string();
+    let axes = prop_oneof![Just(1_u32), Just(10)].prop_flat_map(|e| {
+        let name = label_text("[a-z][a-z0-9_]{0,10}", e);
+        let label = label_text("[a-z0-9][a-z0-9.-]{0,10}", e);
+        prop::collection::vec((name, prop::collection::vec(label, 1..=3)), 1..=3)
+    });
+    let (accepted, rejected) = (Cell::new(0), Cell::new(0));
+    let mut runner = TestRunner::new(config(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/proptest-regressions/sweep_names.txt"
+    )));
+    let result = runner.run(&axes, |axes| {
+        let mut text = format!("{base}sweep:\n  axes:\n");
+        for (name, labels) in &axes {
+            // JSON strings are YAML double-quoted scalars: any text, escaped.
+            text += &format!("    - name: {}\n      values:\n", serde_json::to_string(name).unwrap());
+            for l in labels {
+                text += &format!(
+                    "        - {{ label: {}, set: {{ outputs.every: 1 }} }}\n",
+                    serde_json::to_string(l).unwrap()
+                );
+            }
+        }
+        match expand(&text, "fuzz.yaml", false) {
+            Ok(expanded) => {
+                accepted.set(accepted.get() + 1);
+                for c in &expanded.cases {
+                    let mut parts = std::path::Path::new(&c.id).components();
+                    let plain = matches!(parts.next(), Some(std::path::Component::Normal(_))) && parts.next().is_none();
+                    prop_assert!(plain && !c.id.contains('/') && c.id.len() <= 200, "case id {:?} of\n{text}", c.id);
+                }
+            }
+            Err(e) => {
+                rejected.set(rejected.get() + 1);
+                prop_assert!(located(&e), "a rejection without a line: {e}\nof\n{text}");
+            }
+        }
+        Ok(())
+    });
+    eprintln!("sweep names: {} accepted, {} rejected", accepted.get(), rejected.get());
+    if let Err(e) = result {
+        panic!("sweep names: {e}");
+    }
+    assert!(
+        accepted.get() > 0 && rejected.get() > 0,
+        "{} accepted, {} rejected",
+        accepted.get(),
+        rejected.get()
+    );
+}
