@@ -693,8 +693,10 @@ fn an_unstable_structure_fails_at_substitution() {
     );
 }
 
-/// A resume checks what it trusts: a truncated result.h5 and a deleted replay.mcap make
-/// their cases run again, the intact ones are skipped. And a second `tsim run` into a
+/// A resume checks what it trusts: a truncated result.h5, a deleted replay.mcap and a
+/// result.h5 with one byte flipped in its middle (same length and signature; issue 29:
+/// served as complete) make their cases run again, the intact ones are skipped; `tsim
+/// collect` lists the flipped one as changed rather than reading it. And a second `tsim run` into a
 /// directory in use (its `.lock` names a live process on this host: this test's own) is
 /// refused with the holder named, writing nothing.
 #[test]
@@ -708,6 +710,18 @@ fn resume_verifies_outputs_and_a_used_directory_is_locked() {
     let len = std::fs::metadata(&h5).unwrap().len();
     std::fs::OpenOptions::new().write(true).open(&h5).unwrap().set_len(len / 2).unwrap();
     std::fs::remove_file(dir.join("cable-nylon_zeta-0.1/replay.mcap")).unwrap();
+    let flipped = dir.join("cable-rubber_zeta-0.1/result.h5");
+    let mut bytes = std::fs::read(&flipped).unwrap();
+    let middle = bytes.len() / 2;
+    bytes[middle] ^= 0x01;
+    std::fs::write(&flipped, &bytes).unwrap();
+    let collected = tsim(&["collect", dir.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&collected.stderr);
+    assert_eq!(collected.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("missing: cable-rubber_zeta-0.1: result.h5's contents changed"),
+        "{err}"
+    );
     assert!(run(&[]).status.success());
     let status: Vec<(String, String, String)> = outcomes(out)
         .iter()
@@ -717,7 +731,7 @@ fn resume_verifies_outputs_and_a_used_directory_is_locked() {
         })
         .collect();
     for (id, s, run) in &status {
-        let damaged = id == "cable-rubber_zeta-0.05" || id == "cable-nylon_zeta-0.1";
+        let damaged = ["cable-rubber_zeta-0.05", "cable-nylon_zeta-0.1", "cable-rubber_zeta-0.1"].contains(&id.as_str());
         assert_eq!(s, "complete", "{status:?}");
         assert_eq!(run, if damaged { "computed" } else { "reused" }, "{status:?}");
     }

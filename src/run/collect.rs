@@ -37,17 +37,27 @@ pub fn collect(dir: &Path) -> Result<Collected, String> {
             summary.display()
         )
     })?;
-    collect_outcomes(dir, &outcomes)
+    collect_outcomes(dir, &outcomes, Verify::Outputs)
+}
+
+/// Whether to check a complete case's outputs against its outcome before reading them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verify {
+    /// Their lengths, signatures and checksums (`tsim collect`: they may have changed
+    /// since).
+    Outputs,
+    /// Trusted: just written (the end of `tsim run`, which recorded them).
+    Trusted,
 }
 
 /// Collects the cases `outcomes` of the run directory `dir`.
-pub fn collect_outcomes(dir: &Path, outcomes: &[CaseOutcome]) -> Result<Collected, String> {
+pub fn collect_outcomes(dir: &Path, outcomes: &[CaseOutcome], verify: Verify) -> Result<Collected, String> {
     let axes: Vec<String> = outcomes
         .first()
         .map(|o| o.params.iter().map(|(a, _)| a.clone()).collect())
         .unwrap_or_default();
     let mut missing = Vec::new();
-    let histories = energy_histories(dir, outcomes, &mut missing);
+    let histories = energy_histories(dir, outcomes, verify, &mut missing);
     let c = Collection {
         ids: outcomes.iter().map(|o| o.id.clone()).collect(),
         coords: axis_coordinates(&axes, outcomes),
@@ -135,8 +145,9 @@ fn summary_variables(outcomes: &[CaseOutcome]) -> Vec<Variable> {
 }
 
 /// The energy histories of `STAGES` for every case, empty for a case without complete
-/// results, which is added to `missing` with the reason.
-fn energy_histories(dir: &Path, outcomes: &[CaseOutcome], missing: &mut Vec<(String, String)>) -> Vec<History> {
+/// results (or, verifying, whose outputs changed since), which is added to `missing`
+/// with the reason.
+fn energy_histories(dir: &Path, outcomes: &[CaseOutcome], verify: Verify, missing: &mut Vec<(String, String)>) -> Vec<History> {
     let mut histories: Vec<History> = STAGES
         .iter()
         .map(|s| History {
@@ -148,6 +159,7 @@ fn energy_histories(dir: &Path, outcomes: &[CaseOutcome], missing: &mut Vec<(Str
     for o in outcomes {
         let mut rows = vec![(Vec::new(), Vec::new(), Vec::new()); STAGES.len()];
         let why = match (o.status, &o.reason) {
+            (CaseStatus::Complete, _) if verify == Verify::Outputs => super::files::changed(&dir.join(&o.id), &o.files),
             (CaseStatus::Complete, _) => None,
             (CaseStatus::Failed, Some(reason)) => Some(format!("failed: {reason}")),
             (status, _) => Some(status.to_string()),

@@ -3,7 +3,7 @@
 //! still what its outcome recorded before a resume trusts them.
 
 use std::collections::BTreeMap;
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 /// Writes `bytes` to `path` so that a reader sees the old file or the whole new one, never
@@ -49,39 +49,103 @@ pub fn unlink_planted(dir: &Path) -> Result<(), String> {
     Ok(())
 }
 
-/// The output files a finished case wrote, with their lengths in bytes.
-pub fn output_files(dir: &Path) -> BTreeMap<String, u64> {
-    ["result.h5", "replay.mcap"]
-        .into_iter()
-        .filter_map(|name| Some((name.to_string(), std::fs::metadata(dir.join(name)).ok()?.len())))
-        .collect()
+/// An output file of a complete case, as its outcome records it.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct OutputFile {
+    /// [bytes]
+    pub bytes: u64,
+    /// CRC-32 of the whole file (IEEE, as gzip and zlib compute it), 8 hex digits.
+    pub crc32: String,
 }
+
+/// The output files of a case by name.
+pub type OutputFiles = BTreeMap<String, OutputFile>;
 
 /// First bytes of an HDF5 file, and the last bytes of a finished MCAP file (its footer's
 /// closing magic).
 const HDF5_SIGNATURE: &[u8] = b"\x89HDF\r\n\x1a\n";
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
+/// A file read through once: its length, CRC-32 and the bytes its format's signature is
+/// checked in (the first and the last 8).
+struct Scan {
+    bytes: u64,
+    crc32: u32,
+    head: Vec<u8>,
+    tail: Vec<u8>,
+}
+
+/// Reads `path` in 1 MiB blocks (a result.h5 may be many GB; it is not held whole).
+fn scan(path: &Path) -> std::io::Result<Scan> {
+    let mut file = std::fs::File::open(path)?;
+    let mut block = vec![0u8; 1 << 20];
+    let mut out = Scan {
+        bytes: 0,
+        crc32: 0,
+        head: Vec::new(),
+        tail: Vec::new(),
+    };
+    loop {
+        let n = match file.read(&mut block) {
+            Ok(0) => return Ok(out),
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        let read = &block[..n];
+        out.crc32 = zlib_rs::crc32::crc32(out.crc32, read);
+        out.bytes += n as u64;
+        if out.head.len() < 8 {
+            out.head.extend(read.iter().take(8 - out.head.len()));
+        }
+        out.tail.extend_from_slice(&read[n.saturating_sub(8)..]);
+        let excess = out.tail.len().saturating_sub(8);
+        out.tail.drain(..excess);
+    }
+}
+
+/// The output files a finished case wrote, with their lengths and checksums.
+pub fn output_files(dir: &Path) -> OutputFiles {
+    ["result.h5", "replay.mcap"]
+        .into_iter()
+        .filter_map(|name| {
+            let s = scan(&dir.join(name)).ok()?;
+            Some((
+                name.to_string(),
+                OutputFile {
+                    bytes: s.bytes,
+                    crc32: format!("{:08x}", s.crc32),
+                },
+            ))
+        })
+        .collect()
+}
+
 /// Why the outputs in `dir` are not the ones recorded in `files`, if they are not: a file
-/// missing, of another length, or without its format's signature (HDF5 header, MCAP
-/// closing magic).
-pub fn changed(dir: &Path, files: &BTreeMap<String, u64>) -> Option<String> {
-    for (name, &len) in files {
-        let path = dir.join(name);
-        let bytes = match std::fs::read(&path) {
-            Ok(b) => b,
+/// missing, of another length, without its format's signature (HDF5 header, MCAP closing
+/// magic), or with other contents (its CRC-32: a byte changed anywhere).
+pub fn changed(dir: &Path, files: &OutputFiles) -> Option<String> {
+    for (name, recorded) in files {
+        let s = match scan(&dir.join(name)) {
+            Ok(s) => s,
             Err(e) => return Some(format!("{name}: {e}")),
         };
-        if bytes.len() as u64 != len {
-            return Some(format!("{name} is {} bytes, {len} when the case completed", bytes.len()));
+        if s.bytes != recorded.bytes {
+            return Some(format!("{name} is {} bytes, {} when the case completed", s.bytes, recorded.bytes));
         }
         let intact = match name.as_str() {
-            "result.h5" => bytes.starts_with(HDF5_SIGNATURE),
-            "replay.mcap" => bytes.ends_with(MCAP_MAGIC),
+            "result.h5" => s.head.starts_with(HDF5_SIGNATURE),
+            "replay.mcap" => s.tail.ends_with(MCAP_MAGIC),
             _ => true,
         };
         if !intact {
             return Some(format!("{name} lacks its format's signature"));
+        }
+        if format!("{:08x}", s.crc32) != recorded.crc32 {
+            return Some(format!(
+                "{name}'s contents changed since the case completed (CRC-32 {:08x}, recorded {})",
+                s.crc32, recorded.crc32
+            ));
         }
     }
     None
@@ -302,6 +366,11 @@ mod tests {
         assert_eq!(changed(dir, &files), None);
         std::fs::write(dir.join("result.h5"), &h5[..50]).unwrap();
         assert!(changed(dir, &files).unwrap().contains("result.h5 is 50 bytes"));
+        // One byte flipped in the middle, length and signature intact.
+        let mut flipped = h5.clone();
+        flipped[50] ^= 0x10;
+        std::fs::write(dir.join("result.h5"), &flipped).unwrap();
+        assert!(changed(dir, &files).unwrap().contains("result.h5's contents changed"));
         std::fs::write(dir.join("result.h5"), &h5).unwrap();
         std::fs::write(dir.join("replay.mcap"), vec![0u8; mcap.len()]).unwrap();
         assert!(changed(dir, &files).unwrap().contains("signature"));

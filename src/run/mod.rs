@@ -12,6 +12,7 @@ mod submit;
 mod sweep;
 
 pub use collect::{collect, Collected};
+pub use files::{OutputFile, OutputFiles};
 pub use interrupt::{install as install_interrupt, interrupted, EXIT_INTERRUPTED};
 pub use merge::{merge, Merged};
 pub use progress::Progress;
@@ -157,10 +158,10 @@ pub struct CaseOutcome {
     /// With `outputs.figures`: "written" or why not.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub figures: Option<String>,
-    /// The output files of a complete case and their lengths [bytes]: a resume checks
-    /// them before it trusts the case.
+    /// The output files of a complete case, their lengths and checksums: a resume and
+    /// `tsim collect` check them before they trust the case.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
-    pub files: std::collections::BTreeMap<String, u64>,
+    pub files: files::OutputFiles,
 }
 
 impl CaseOutcome {
@@ -218,7 +219,7 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
         sweep::write_summaries(&dir, &outcomes)?;
         // The cases in one xarray-ready file: cheap (each case's energies only); a failure
         // here loses nothing (`tsim collect` writes it again).
-        if let Err(e) = collect::collect_outcomes(&dir, &outcomes) {
+        if let Err(e) = collect::collect_outcomes(&dir, &outcomes, collect::Verify::Trusted) {
             eprintln!("warning: {e}");
         }
         return Ok(outcomes);
@@ -286,15 +287,16 @@ fn run_cases(dir: &Path, cases: &[&Case], opts: &RunOptions) -> std::io::Result<
 
 /// A case is complete on disk when its `outcome.json` (written last, after the outputs
 /// are closed) says so, its `case.yaml` is the same resolved config, and its output files
-/// are still the ones the outcome recorded (same lengths, format signatures intact). An
-/// outcome that lists no files (written by an earlier tsim) cannot be checked: rerun.
+/// are still the ones the outcome recorded (same lengths, format signatures and CRC-32).
+/// An outcome that lists no files or no checksums (written by an earlier tsim) cannot be
+/// checked: rerun.
 fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
     let yaml = std::fs::read_to_string(dir.join("case.yaml")).ok()?;
     if yaml != case.yaml {
         return None;
     }
     let outcome: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("outcome.json")).ok()?).ok()?;
-    let recorded: std::collections::BTreeMap<String, u64> = serde_json::from_value(outcome["files"].clone()).ok()?;
+    let recorded: files::OutputFiles = serde_json::from_value(outcome["files"].clone()).ok()?;
     let expected = usize::from(case.config.outputs.hdf5) + usize::from(case.config.outputs.mcap);
     if outcome["status"] != "complete" || recorded.len() != expected || files::changed(dir, &recorded).is_some() {
         return None;
