@@ -225,21 +225,42 @@ impl Sizes {
     }
 }
 
+/// The steps a stage takes, for its estimate.
+struct Steps {
+    steps: f64,
+    /// The stage's key that sets them, where an error about its output points.
+    key: &'static str,
+    /// How they follow from the settings, for the message.
+    how: String,
+    /// Time stepping (recorded every `outputs.every`-th step), or static (every step).
+    dynamic: bool,
+}
+
 impl StageEntrySpec<'_> {
-    /// The steps a stage records (and the config key that sets them, how they follow from
-    /// it, whether it is time stepping); None for a stage without steps (eigen).
-    fn recorded_steps(&self, every: usize) -> Option<(f64, &'static str, String, bool)> {
+    /// The steps of a stage; None for a stage without steps (eigen).
+    fn steps(&self, every: usize) -> Option<Steps> {
+        let fixed = |steps: f64, how: String| Steps {
+            steps,
+            key: "steps",
+            how,
+            dynamic: false,
+        };
         match self {
             StageEntrySpec::Transient(t) => {
-                let n_steps = (t.duration / t.dt).round();
-                let how = format!("duration {} s / dt {} s = {n_steps} steps, every {every}", t.duration, t.dt);
-                Some((n_steps, "duration", how, true))
+                let steps = (t.duration / t.dt).round();
+                let how = format!("duration {} s / dt {} s = {steps} steps, every {every}", t.duration, t.dt);
+                Some(Steps {
+                    steps,
+                    key: "duration",
+                    how,
+                    dynamic: true,
+                })
             }
-            StageEntrySpec::Folding(f) => Some((f.steps as f64, "steps", format!("{} steps", f.steps), false)),
+            StageEntrySpec::Folding(f) => Some(fixed(f.steps as f64, format!("{} steps", f.steps))),
             StageEntrySpec::Static(s) => {
                 // Under displacement control gravity takes its own `steps` first.
-                let n_steps = s.steps as f64 * if s.control.is_some() { 2.0 } else { 1.0 };
-                Some((n_steps, "steps", format!("{n_steps} steps"), false))
+                let steps = s.steps as f64 * if s.control.is_some() { 2.0 } else { 1.0 };
+                Some(fixed(steps, format!("{steps} steps")))
             }
             StageEntrySpec::Eigen(_) => None,
         }
@@ -309,7 +330,13 @@ impl CaseConfig {
         }];
         let mut steps = 2.0;
         for (at, stage, spec) in sections {
-            let Some((n_steps, key, how, dynamic)) = spec.recorded_steps(self.outputs.every) else {
+            let Some(Steps {
+                steps: n_steps,
+                key,
+                how,
+                dynamic,
+            }) = spec.steps(self.outputs.every)
+            else {
                 continue;
             };
             let frames = if dynamic {
