@@ -1,9 +1,11 @@
 //! Mutation testing of the config loader and model builder: seed configs (configs/,
 //! tests/fixtures/ and the reproducers in tests/corpus/) are mutated deterministically —
 //! numbers replaced by edge values, lines dropped, doubled or cut, keys swapped, stray
-//! punctuation — and each mutant goes through sweep expansion and validation, which
-//! builds every case's model. No mutant may panic, and every rejection must say where:
-//! a line (`file:N:`, a parse error's `file:N:M:`). A bounded run here (3000 mutants, a few
+//! punctuation, paths and names (a table `file:`, a `name:`, a `label:`) replaced by
+//! hostile ones — and each mutant goes through sweep expansion and validation, which
+//! builds every case's model. No mutant may panic or hang (a table at /dev/zero), every
+//! rejection must say where: a line (`file:N:`, a parse error's `file:N:M:`), and every
+//! case an accepted one makes is one plain directory name. A bounded run here (3000 mutants, a few
 //! seconds); `TSIM_MUTANTS=N` runs more, and `TSIM_MUTANTS_DIR=dir` also writes the
 //! accepted mutants there, for a campaign of runs.
 
@@ -45,10 +47,25 @@ const EDGE_VALUES: [&str; 16] = [
     "[]",
 ];
 const PUNCTUATION: [&str; 8] = [":", "{", "}", "[", "]", ",", "- ", "\""];
+/// Paths and names that reached outside --out or the config's directory, or hung or
+/// exhausted a run (issue 29), for the scalar after a `file:`, `name:` or `label:` key.
+const HOSTILE: [&str; 9] = [
+    "/dev/zero",
+    "/etc/passwd",
+    "../../../../etc/hostname",
+    "/tmp",
+    "\"../../victim\"",
+    "\"/abs/path\"",
+    "\"a\\nb\"",
+    "\"\"",
+    "\"a/b\"",
+];
+/// The keys whose value is a path or becomes one.
+const PATH_KEYS: [&str; 3] = ["file: ", "name: ", "label: "];
 
 fn seeds() -> Vec<(String, String)> {
     let root = env!("CARGO_MANIFEST_DIR");
-    ["configs", "tests/fixtures", "tests/corpus"]
+    ["configs", "configs/examples", "tests/fixtures", "tests/corpus"]
         .iter()
         .flat_map(|dir| std::fs::read_dir(format!("{root}/{dir}")).unwrap())
         .map(|e| e.unwrap().path())
@@ -64,7 +81,7 @@ fn mutate(text: &str, rng: &mut Rng) -> String {
         return text.to_string();
     }
     let i = rng.below(lines.len());
-    match rng.below(6) {
+    match rng.below(7) {
         0 => {
             // A number (or any scalar after `: `) replaced by an edge value.
             let tokens: Vec<(usize, usize)> = number_spans(&lines[i]);
@@ -86,6 +103,14 @@ fn mutate(text: &str, rng: &mut Rng) -> String {
         4 => {
             let at = floor_char(&lines[i], rng.below(lines[i].len() + 1));
             lines[i].insert_str(at, PUNCTUATION[rng.below(PUNCTUATION.len())]);
+        }
+        5 => {
+            // The value of a path-like key replaced by a hostile path or name.
+            if let Some((key, at)) = PATH_KEYS.iter().find_map(|k| lines[i].find(k).map(|at| (k, at))) {
+                let start = at + key.len();
+                let end = lines[i][start..].find([',', '}']).map_or(lines[i].len(), |e| start + e);
+                lines[i].replace_range(start..end, HOSTILE[rng.below(HOSTILE.len())]);
+            }
         }
         _ => {
             // A line of another place in the file moved here (keys in the wrong section).
@@ -149,8 +174,14 @@ fn mutated_configs_never_panic_and_every_rejection_has_a_line() {
         let result = catch_unwind(AssertUnwindSafe(|| expand(&text, origin, false)));
         match result {
             Err(_) => panic!("mutant {k} of {origin} panicked:\n{text}"),
-            Ok(Ok(_)) => {
+            Ok(Ok(expanded)) => {
                 accepted += 1;
+                // Every case directory is one plain name under the run's.
+                for c in &expanded.cases {
+                    let mut parts = std::path::Path::new(&c.id).components();
+                    let plain = matches!(parts.next(), Some(std::path::Component::Normal(_))) && parts.next().is_none();
+                    assert!(plain, "mutant {k} of {origin}: case id {:?}\n{text}", c.id);
+                }
                 if let Ok(dir) = std::env::var("TSIM_MUTANTS_DIR") {
                     std::fs::write(format!("{dir}/mutant{k:06}.yaml"), &text).unwrap();
                 }

@@ -104,7 +104,12 @@ pub fn resolve_tables(cfg: &mut CaseConfig, text: &str, origin: &str) -> Result<
         for e in errors {
             match e {
                 TableError::Field(f) => fields.push(f),
-                TableError::Csv(v) => rows.push(v),
+                TableError::Csv(v) if v.line.is_some() => rows.push(v),
+                // About the whole table (too few rows): at the config's `file:` line.
+                TableError::Csv(v) => fields.push(FieldError {
+                    field: v.field,
+                    message: format!("`{}` {}", v.file, v.message),
+                }),
             }
         }
         let mut located = locate_errors(origin, text, fields);
