@@ -7,10 +7,9 @@
 //! the structure.
 
 use crate::config::CaseConfig;
-use crate::dynamics::Rayleigh;
 use crate::error::{Error, Result};
 use crate::model::clearance::Tracker;
-use crate::model::{shape_error, Model};
+use crate::model::Model;
 use crate::record::{
     ClearanceLog, ClearanceSummary, FormFindRecord, FrameClearance, ModelRecord, Recorder, RigidityRecord, Stage, StageKind, StageLayout,
 };
@@ -18,13 +17,12 @@ use crate::rigidity::{self, Rigidity, RigidityError};
 use crate::stage::eigen::EigenSummary;
 use crate::stage::fold::FoldSummary;
 use crate::stage::formfind::{explain_failure, FormFindSummary, SelfEquilibrium};
-use crate::stage::sequence::{Planned, PlannedStage};
+use crate::stage::sequence::{PlannedStage, Reached};
+pub use crate::stage::sequence::{StageSummary, TransientStageSummary};
 use crate::stage::static_load::StaticSummary;
 use crate::stage::substitute::{balanced_forces, SubstitutionSummary};
-use crate::stage::transient::{Transient, TransientSummary};
 use crate::stage::{Analysis, Settings};
 use crate::structure::{State, Structure};
-use nalgebra::Vector3;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -51,33 +49,6 @@ pub struct CaseSummary {
     /// pass-through events (absent with `outputs.clearance: false`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clearance: Option<ClearanceSummary>,
-}
-
-/// The figures of one stage, by its kind.
-#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum StageSummary {
-    Static(StaticSummary),
-    Eigen(EigenSummary),
-    Transient(TransientStageSummary),
-    Folding(FoldSummary),
-}
-
-/// A transient's figures and, with `compare_to` (deployment: the pre-fold equilibrium),
-/// how far it ended from that shape.
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct TransientStageSummary {
-    #[serde(flatten)]
-    pub transient: TransientSummary,
-    /// RMS over nodes of the distance to the compared shape, over the tower height.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shape_error: Option<f64>,
-    /// The same against the mirror image z → −z of the compared shape: small when the
-    /// tower deployed downwards (inverted).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub mirror_shape_error: Option<f64>,
-    #[serde(skip)]
-    pub final_positions: Vec<Vector3<f64>>,
 }
 
 impl CaseSummary {
@@ -126,13 +97,6 @@ pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSum
     Ok(summary)
 }
 
-/// A state the stages have reached, with the loads that hold it.
-struct Reached {
-    state: State,
-    /// The dead loads on from the static stages before it [N per node]; empty for none.
-    dead_load: Vec<Vector3<f64>>,
-}
-
 /// [`run_case`] without the clearance summary, which its recorder keeps.
 fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSummary> {
     let model = cfg.model.build()?;
@@ -175,89 +139,25 @@ fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSumma
         state: unloaded,
         dead_load: Vec::new(),
     }];
-    let mut rayleigh: Vec<Rayleigh> = Vec::with_capacity(plan.len());
+    let mut figures: Vec<StageSummary> = Vec::with_capacity(plan.len());
     for planned in &plan {
         structure.dead_load.clone_from(&reached[planned.from].dead_load);
-        let (end, figures, dead_load) = run_planned(planned, &structure, &reached, &rayleigh, &settings, recorder)?;
-        rayleigh.push(match &figures {
-            StageSummary::Eigen(e) => e.rayleigh(),
-            _ => Rayleigh::default(),
-        });
-        let name = planned.stage().name();
-        summary.stages.insert(name.into(), figures);
-        lap(&mut summary, name);
-        reached.push(Reached { state: end, dead_load });
+        let (end, stage_figures) = planned.run(&structure, &reached, &figures, &settings, recorder)?;
+        figures.push(stage_figures);
+        lap(&mut summary, planned.stage().name());
+        reached.push(end);
+    }
+    for (planned, stage_figures) in plan.iter().zip(figures) {
+        summary.stages.insert(planned.stage().name().into(), stage_figures);
     }
     Ok(summary)
-}
-
-/// One planned stage from its start among `reached` (the states so far), damped by the
-/// α, β of an earlier eigen stage (`rayleigh`, by plan index) where it says so: the state
-/// it ends in, its figures and the dead load that holds that state.
-fn run_planned(
-    planned: &PlannedStage,
-    structure: &Structure,
-    reached: &[Reached],
-    rayleigh: &[Rayleigh],
-    settings: &Settings,
-    recorder: &mut dyn Recorder,
-) -> Result<(State, StageSummary, Vec<Vector3<f64>>)> {
-    let start = &reached[planned.from];
-    let state = start.state.clone();
-    let mut dead_load = start.dead_load.clone();
-    let (end, figures) = match &planned.analysis {
-        Planned::Static(stage) => {
-            let (end, statics) = stage.run(structure, state, settings, recorder)?;
-            dead_load = stage.dead_load(&dead_load, statics.load_factor);
-            (end, StageSummary::Static(statics))
-        }
-        Planned::Eigen(stage) => {
-            let (end, eigen) = stage.run(structure, state, settings, recorder)?;
-            (end, StageSummary::Eigen(eigen))
-        }
-        Planned::Transient {
-            stage,
-            rayleigh_from,
-            compare_to,
-        } => {
-            let stage = Transient {
-                rayleigh: rayleigh_from.map_or_else(Rayleigh::default, |k| rayleigh[k]),
-                ..stage.clone()
-            };
-            // The shape error at every step, for the time it comes within 1 % of the compared shape.
-            let compared = compare_to.map(|k| &reached[k].state);
-            let (end, transient) = stage.run_towards(structure, state, settings, recorder, compared.map(|s| &s.positions[..]))?;
-            let figures = TransientStageSummary::new(transient, &end, compared);
-            (end, StageSummary::Transient(figures))
-        }
-        Planned::Folding(stage) => {
-            let (end, fold) = stage.run(structure, state, settings, recorder)?;
-            (end, StageSummary::Folding(fold))
-        }
-    };
-    Ok((end, figures, dead_load))
 }
 
 /// What the outputs are told of the stages before any runs: each planned stage, and for
 /// the paper's sequence (`paper`) a placeholder for each of its stepped stages that does
 /// not run, so that its files keep one layout whichever sections a case gives.
 fn layouts(model: &Model, plan: &[PlannedStage], paper: bool) -> Vec<StageLayout> {
-    let layout = |p: &PlannedStage| {
-        let plain = StageLayout::plain(model, p.stage().clone());
-        match &p.analysis {
-            Planned::Folding(f) => StageLayout {
-                constraints: f.constraints(model),
-                path_modes: f.modes,
-                ..plain
-            },
-            Planned::Transient { stage, .. } => StageLayout {
-                actuated: !stage.actuators.is_empty(),
-                ..plain
-            },
-            _ => plain,
-        }
-    };
-    let planned: Vec<StageLayout> = plan.iter().map(layout).collect();
+    let planned: Vec<StageLayout> = plan.iter().map(|p| p.layout(model)).collect();
     if !paper {
         return planned;
     }
@@ -361,17 +261,4 @@ fn record_structure(
         stage: found.stage.name.clone(),
         source,
     })
-}
-
-impl TransientStageSummary {
-    /// The stage's figures and how far it ended from the `compared` state.
-    fn new(transient: TransientSummary, end: &State, compared: Option<&State>) -> Self {
-        let errors = compared.map(|c| shape_error(&end.positions, &c.positions));
-        TransientStageSummary {
-            transient,
-            shape_error: errors.map(|e| e.0),
-            mirror_shape_error: errors.map(|e| e.1),
-            final_positions: end.positions.clone(),
-        }
-    }
 }
