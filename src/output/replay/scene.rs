@@ -6,6 +6,11 @@ use crate::model::Model;
 use foxglove::messages::Color;
 use nalgebra::Vector3;
 
+/// An opaque colour of red, green and blue in 0..=1.
+const fn opaque(r: f64, g: f64, b: f64) -> Color {
+    Color { r, g, b, a: 1.0 }
+}
+
 /// Line widths [px], independent of zoom so that any model size reads well.
 pub(super) const STRUT_WIDTH: f64 = 6.0;
 pub(super) const CABLE_WIDTH: f64 = 2.0;
@@ -19,60 +24,20 @@ const NODE_SIZE: f64 = 0.05;
 /// Support cube edge as a multiple of the node sphere diameter.
 pub(super) const SUPPORT_SIZE: f64 = 1.6;
 /// Highlighted struts: a magenta apart from the force scales, node and support colours.
-pub(super) const MAGENTA: Color = Color {
-    r: 0.85,
-    g: 0.0,
-    b: 0.75,
-    a: 1.0,
-};
+pub(super) const MAGENTA: Color = opaque(0.85, 0.0, 0.75);
 /// Legend font height [px].
 pub(super) const LEGEND_FONT: f64 = 14.0;
-pub(super) const RED: Color = Color {
-    r: 0.85,
-    g: 0.10,
-    b: 0.10,
-    a: 1.0,
-};
-pub(super) const BLUE: Color = Color {
-    r: 0.10,
-    g: 0.30,
-    b: 0.90,
-    a: 1.0,
-};
+pub(super) const RED: Color = opaque(0.85, 0.10, 0.10);
+pub(super) const BLUE: Color = opaque(0.10, 0.30, 0.90);
 /// Slack members, and where the force scales start: a mid grey, so that a faint force is
 /// still seen on Foxglove's light theme.
-pub(super) const GREY: Color = Color {
-    r: 0.55,
-    g: 0.55,
-    b: 0.55,
-    a: 1.0,
-};
-pub(super) const GOLD: Color = Color {
-    r: 0.95,
-    g: 0.70,
-    b: 0.10,
-    a: 1.0,
-};
-pub(super) const GREEN: Color = Color {
-    r: 0.10,
-    g: 0.65,
-    b: 0.25,
-    a: 1.0,
-};
-pub(super) const PURPLE: Color = Color {
-    r: 0.60,
-    g: 0.30,
-    b: 0.80,
-    a: 1.0,
-};
+pub(super) const GREY: Color = opaque(0.55, 0.55, 0.55);
+pub(super) const GOLD: Color = opaque(0.95, 0.70, 0.10);
+pub(super) const GREEN: Color = opaque(0.10, 0.65, 0.25);
+pub(super) const PURPLE: Color = opaque(0.60, 0.30, 0.80);
 /// Legend text: a teal of relative luminance 0.18, 4.6:1 against both black and white
 /// (WCAG's 4.5:1 for text), readable on Foxglove's dark and light themes alike.
-pub(super) const TEXT: Color = Color {
-    r: 0.0,
-    g: 0.515,
-    b: 0.515,
-    a: 1.0,
-};
+pub(super) const TEXT: Color = opaque(0.0, 0.515, 0.515);
 
 /// Colour of a line state: 0 slack (grey), 1..=LEVELS tension (grey-red to full red),
 /// LEVELS+1..=2·LEVELS compression (grey-blue to full blue).
