@@ -5,7 +5,7 @@
 //! are coordinates along `case` (every variable's `coordinates` attribute names them), the
 //! per-case scalars of `summary.csv` and the energy histories of each stage are variables.
 
-use super::h5::{str_attr, varlen, Dims};
+use super::h5::{str_attr, untimed_file, varlen, Dims};
 use hdf5::types::{FixedUnicode, VarLenUnicode};
 use hdf5::File;
 use std::path::Path;
@@ -91,7 +91,7 @@ fn shared_time(times: &[Vec<f64>]) -> Option<&Vec<f64>> {
 
 /// Writes `c` to `path` (replacing it).
 pub fn write(path: &Path, c: &Collection) -> Result<(), Error> {
-    let file = File::create(path)?;
+    let file = untimed_file().create(path)?;
     for (name, value) in &c.attrs {
         str_attr(&file, name, value)?;
     }

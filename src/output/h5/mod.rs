@@ -31,7 +31,8 @@ use crate::record::{
 use hdf5::types::FixedUnicode;
 use hdf5::{File, Group};
 use netcdf::flat;
-pub(super) use netcdf::{str_attr, varlen, Dims};
+use netcdf::untimed_group;
+pub(super) use netcdf::{str_attr, untimed_file, varlen, Dims};
 use series::{Ids, Series};
 use std::path::Path;
 
@@ -98,7 +99,7 @@ impl Hdf5Recorder {
     /// output stride (`outputs.every`) is applied by the stages, which call `frame` only for
     /// the steps to record.
     pub fn create(path: &Path, case_id: &str, config_yaml: &str) -> Result<Self, Error> {
-        let file = File::with_options().with_fapl(|p| p.libver_v110()).create(path)?;
+        let file = untimed_file().with_fapl(|p| p.libver_v110()).create(path)?;
         str_attr(&file, "tsim_version", env!("CARGO_PKG_VERSION"))?;
         str_attr(&file, "case_id", case_id)?;
         str_attr(&file, "config", config_yaml)?;
@@ -155,7 +156,7 @@ impl Open {
         if self.swmr {
             return Err(format!("HDF5: /{name} recorded after a time-stepping stage began").into());
         }
-        Ok(self.file.create_group(name)?)
+        untimed_group(&self.file, name)
     }
 
     fn series(&mut self) -> Result<&mut Series, Error> {
@@ -221,7 +222,7 @@ impl Recorder for Hdf5Recorder {
                 nodes: &open.node_ids,
                 members: &open.member_ids,
             };
-            let group = open.file.create_group(layout.stage.name())?;
+            let group = untimed_group(&open.file, layout.stage.name())?;
             str_attr(&group, "stage_kind", layout.stage.kind.name())?;
             let series = Series::create(group, layout, ids, record, chunk)?;
             open.series.push((layout.stage.clone(), series));

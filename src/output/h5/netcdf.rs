@@ -5,7 +5,7 @@
 use super::{Error, GZIP_LEVEL};
 use crate::output::chunk::ChunkEncoder;
 use hdf5::types::VarLenUnicode;
-use hdf5::{Dataset, Group, H5Type, Location};
+use hdf5::{Dataset, File, FileBuilder, Group, H5Type, Location};
 use hdf5_sys::h5::{herr_t, hsize_t};
 use hdf5_sys::h5d::H5Dwrite;
 use hdf5_sys::h5i::hid_t;
@@ -236,6 +236,20 @@ pub(super) fn check(err: herr_t, what: &str) -> Result<(), Error> {
 pub(super) fn describe(ds: &Dataset, units: &str, long_name: &str) -> Result<(), Error> {
     str_attr(ds, "units", units)?;
     str_attr(ds, "long_name", long_name)
+}
+
+/// A new file's builder whose groups carry no timestamps (datasets carry none already:
+/// hdf5-metno's default, as h5py's). Two runs of a case then write the same bytes, so the
+/// CRC in outcome.json compares results, not the second each file was written in.
+pub(crate) fn untimed_file() -> FileBuilder {
+    let mut builder = File::with_options();
+    builder.with_fcpl(|p| p.obj_track_times(false));
+    builder
+}
+
+/// `parent/name`, a group without timestamps (see [`untimed_file`]).
+pub(crate) fn untimed_group(parent: &Group, name: &str) -> Result<Group, Error> {
+    Ok(parent.create_group_builder().obj_track_times(false).create(name)?)
 }
 
 pub(crate) fn str_attr(loc: &Location, name: &str, value: &str) -> Result<(), Error> {
