@@ -17,7 +17,7 @@ use crate::rigidity::{self, Rigidity, RigidityError};
 use crate::stage::eigen::EigenSummary;
 use crate::stage::fold::FoldSummary;
 use crate::stage::formfind::{explain_failure, FormFindSummary, SelfEquilibrium};
-use crate::stage::sequence::{PlannedStage, Reached};
+use crate::stage::sequence::{PlannedStage, Reached, Run};
 pub use crate::stage::sequence::{StageSummary, TransientStageSummary};
 use crate::stage::static_load::StaticSummary;
 use crate::stage::substitute::{balanced_forces, SubstitutionSummary};
@@ -142,7 +142,13 @@ fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSumma
     let mut figures: Vec<StageSummary> = Vec::with_capacity(plan.len());
     for planned in &plan {
         structure.dead_load.clone_from(&reached[planned.from].dead_load);
-        let (end, stage_figures) = planned.run(&structure, &reached, &figures, &settings, recorder)?;
+        let run = Run {
+            structure: &structure,
+            reached: &reached,
+            earlier: &figures,
+            settings: &settings,
+        };
+        let (end, stage_figures) = planned.run(&run, recorder)?;
         figures.push(stage_figures);
         lap(&mut summary, planned.stage().name());
         reached.push(end);

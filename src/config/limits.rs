@@ -8,8 +8,9 @@
 //! stage holds at once plus the per-node and per-member buffers and the output writers'
 //! bounded queues.
 
+use super::kinds::Steps;
 use super::schema::{CaseConfig, EigenSpec};
-use super::sequence::{Section, StageEntrySpec};
+use super::sequence::Section;
 use crate::model::Model;
 use crate::solve::{krylov_dimension, LinearSolverChoice, DENSE_LIMIT};
 use crate::stage::eigen::ModeSolver;
@@ -225,48 +226,6 @@ impl Sizes {
     }
 }
 
-/// The steps a stage takes, for its estimate.
-struct Steps {
-    steps: f64,
-    /// The stage's key that sets them, where an error about its output points.
-    key: &'static str,
-    /// How they follow from the settings, for the message.
-    how: String,
-    /// Time stepping (recorded every `outputs.every`-th step), or static (every step).
-    dynamic: bool,
-}
-
-impl StageEntrySpec<'_> {
-    /// The steps of a stage; None for a stage without steps (eigen).
-    fn steps(&self, every: usize) -> Option<Steps> {
-        let fixed = |steps: f64, how: String| Steps {
-            steps,
-            key: "steps",
-            how,
-            dynamic: false,
-        };
-        match self {
-            StageEntrySpec::Transient(t) => {
-                let steps = (t.duration / t.dt).round();
-                let how = format!("duration {} s / dt {} s = {steps} steps, every {every}", t.duration, t.dt);
-                Some(Steps {
-                    steps,
-                    key: "duration",
-                    how,
-                    dynamic: true,
-                })
-            }
-            StageEntrySpec::Folding(f) => Some(fixed(f.steps as f64, format!("{} steps", f.steps))),
-            StageEntrySpec::Static(s) => {
-                // Under displacement control gravity takes its own `steps` first.
-                let steps = s.steps as f64 * if s.control.is_some() { 2.0 } else { 1.0 };
-                Some(fixed(steps, format!("{steps} steps")))
-            }
-            StageEntrySpec::Eigen(_) => None,
-        }
-    }
-}
-
 impl CaseConfig {
     /// Output and peak memory of this case on `model` (its valid model). The stage values
     /// must be valid (positive dt, duration, steps).
@@ -275,13 +234,7 @@ impl CaseConfig {
         let sections = self.stage_sections();
         let (mut output, steps) = self.stage_output(&s, &sections);
         // The eigen stage's solver: every mode dense, the lowest k partial.
-        let eigens: Vec<&EigenSpec> = sections
-            .iter()
-            .filter_map(|(_, _, spec)| match spec {
-                StageEntrySpec::Eigen(e) => Some(*e),
-                _ => None,
-            })
-            .collect();
+        let eigens: Vec<&EigenSpec> = sections.iter().filter_map(|(_, _, spec)| spec.eigen()).collect();
         // Every eigen stage records its modes; their matrices are held one at a time.
         let eigen_solver = eigens.first().map(|e| e.mode_solver());
         let eigen_partial = eigen_solver.filter(|m| m.partial(s.n as usize));

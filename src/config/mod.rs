@@ -6,6 +6,7 @@
 mod build;
 mod input;
 mod json_schema;
+mod kinds;
 mod limits;
 mod loading;
 mod locate;
@@ -23,7 +24,6 @@ pub use limits::{bytes_text, Estimate, LimitSpec, Limits, Part, MAX_MEMORY_GB, M
 pub use loading::*;
 pub use materials::{library, LawSpec, MaterialSpec};
 pub use schema::*;
-pub use sequence::StageEntrySpec;
 pub use tables::{parse_table, TableError};
 pub use validate::{ConfigError, FieldError, ValueError};
 

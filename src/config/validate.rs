@@ -1,13 +1,12 @@
+use super::kinds::{check_eigen, check_folding, check_static, check_transient, check_transient_loading, EntryCheck};
 use super::limits::{bytes_text, Estimate, LimitSpec, Limits};
-use super::loading::{ActuationSpec, NodalVectorSpec, StartFrom, TimeFunctionSpec};
+use super::loading::StartFrom;
 use super::schema::*;
-use super::StageEntrySpec;
 use super::{LawSpec, MaterialSpec};
 use crate::model::generate::TowerSpec;
 use crate::model::grid::GridSpec;
 use crate::model::Model;
-use crate::solve::{krylov_dimension, NewtonSettings};
-use crate::stage::eigen::EigenSolverChoice;
+use crate::solve::NewtonSettings;
 use crate::stage::measure::{CableCoefficients, MeasureSpec};
 
 #[derive(Debug, thiserror::Error)]
@@ -56,10 +55,10 @@ pub struct FieldError {
 
 /// Collects problems so that one run of the checks reports all of them, under the limits
 /// in force.
-struct Problems(Vec<FieldError>, Limits);
+pub(in crate::config) struct Problems(pub(in crate::config) Vec<FieldError>, Limits);
 
 impl Problems {
-    fn add(&mut self, field: impl Into<String>, message: impl Into<String>) {
+    pub(in crate::config) fn add(&mut self, field: impl Into<String>, message: impl Into<String>) {
         let e = FieldError {
             field: field.into(),
             message: message.into(),
@@ -70,13 +69,13 @@ impl Problems {
         }
     }
 
-    fn positive(&mut self, field: &str, v: f64) {
+    pub(in crate::config) fn positive(&mut self, field: &str, v: f64) {
         if !(v > 0.0 && v.is_finite()) {
             self.add(field, format!("is {v}; must be a finite number > 0"));
         }
     }
 
-    fn within(&mut self, field: &str, v: f64, lo: f64, hi: f64, range: &str) {
+    pub(in crate::config) fn within(&mut self, field: &str, v: f64, lo: f64, hi: f64, range: &str) {
         if !(v > lo && v < hi) {
             self.add(field, format!("is {v}; must lie in {range}"));
         }
@@ -207,56 +206,23 @@ impl CaseConfig {
         for (k, entry) in self.stages.iter().enumerate() {
             let at = format!("stages[{k}]");
             check_stage_name(&format!("{at}.name"), &entry.name, &names, p);
-            let known = |field: &str, name: &str, p: &mut Problems| {
-                if !names.contains(&name) {
-                    p.add(format!("{at}.{field}"), unknown_stage(name, &names));
-                }
-            };
-            if let Some(from) = &entry.from {
-                known("from", from, p);
+            if let Some(from) = entry.from.as_deref().filter(|from| !names.contains(from)) {
+                p.add(format!("{at}.from"), unknown_stage(from, &names));
             }
             match entry.spec() {
                 Err(e) => p.add(at.clone(), e),
-                Ok(StageEntrySpec::Static(s)) => check_static(&format!("{at}.static"), s, self.gravity.is_some(), model, p),
-                Ok(StageEntrySpec::Eigen(e)) => {
-                    check_eigen(&format!("{at}.eigen"), e, model, p);
-                    if e.rayleigh.is_some() {
+                Ok(spec) => {
+                    let context = EntryCheck {
+                        model,
+                        names: &names,
+                        damping: &damping,
+                        gravity: self.gravity.is_some(),
+                        supported: self.model_has_supports(),
+                    };
+                    spec.check(&format!("{at}.{}", spec.key()), &context, p);
+                    if spec.gives_damping() {
                         damping.push(&entry.name);
                     }
-                }
-                Ok(StageEntrySpec::Folding(f)) => check_folding(&format!("{at}.folding"), f, model, p),
-                Ok(StageEntrySpec::Transient(t)) => {
-                    let at = format!("{at}.transient");
-                    if t.damped {
-                        p.add(
-                            format!("{at}.damped"),
-                            "in a `stages` entry name the eigen stage whose damping to use: `rayleigh_from: <name>`",
-                        );
-                    }
-                    if t.initial.as_ref().is_some_and(|i| i.from.is_some()) {
-                        p.add(
-                            format!("{at}.initial.from"),
-                            "in a `stages` entry the start is the entry's `from: <stage name>`",
-                        );
-                    }
-                    if let Some(r) = t.rayleigh_from.as_deref().filter(|r| !damping.contains(r)) {
-                        let why = if names.contains(&r) {
-                            "is not an eigen stage with `rayleigh`".to_string()
-                        } else {
-                            unknown_stage(r, &names)
-                        };
-                        p.add(
-                            format!("{at}.rayleigh_from"),
-                            format!("`{r}` {why}; name an earlier eigen stage that gives `rayleigh`"),
-                        );
-                    }
-                    if let Some(c) = &t.compare_to {
-                        if !names.contains(&c.as_str()) {
-                            p.add(format!("{at}.compare_to"), unknown_stage(c, &names));
-                        }
-                    }
-                    check_transient(&at, t, model, p);
-                    check_transient_loading(&at, t, self.model_has_supports(), model, p);
                 }
             }
             if !names.contains(&entry.name.as_str()) {
@@ -492,95 +458,6 @@ fn check_material(at: &str, mat: &MaterialSpec, p: &mut Problems) {
     }
 }
 
-/// The partial solver's keys, and the Rayleigh modes against the modes computed.
-fn check_eigen(at: &str, e: &EigenSpec, model: Option<&Model>, p: &mut Problems) {
-    if e.solver == EigenSolverChoice::Dense {
-        for (field, given) in [
-            (format!("{at}.modes"), e.modes.is_some()),
-            (format!("{at}.shift"), e.shift.is_some()),
-        ] {
-            if given {
-                p.add(
-                    field,
-                    "applies to the partial solver; `eigen.solver: dense` computes every mode (remove it or use `partial`)",
-                );
-            }
-        }
-    }
-    if let Some(shift) = e.shift {
-        p.within(&format!("{at}.shift"), shift, f64::NEG_INFINITY, f64::INFINITY, "(-∞, ∞)");
-    }
-    let solver = e.mode_solver();
-    if let Some(model) = model {
-        let dof_count = 3 * model.node_count() - model.support_count();
-        if e.modes.is_some_and(|k| k == 0 || k >= dof_count) {
-            p.add(
-                format!("{at}.modes"),
-                format!("is {}; must lie in 1..{dof_count} (the model's free DOF)", solver.modes),
-            );
-        } else if e.solver == EigenSolverChoice::Partial && !solver.partial(dof_count) {
-            p.add(format!("{at}.solver"),
-                format!(
-                    "`partial` with {} modes needs more than {} free DOF (its Krylov space), the model has {dof_count}; use `dense` or fewer `eigen.modes`",
-                    solver.modes,
-                    krylov_dimension(solver.modes)
-                ),
-            );
-        }
-        if let Some(RayleighSpec::Modes { modes, .. }) = &e.rayleigh {
-            for (k, m) in modes.iter().enumerate() {
-                if solver.partial(dof_count) && *m > solver.modes {
-                    p.add(
-                        format!("{at}.rayleigh.modes[{k}]"),
-                        format!(
-                            "is {m}, but the partial eigen solver computes {} modes; raise `eigen.modes` to at least {m}",
-                            solver.modes
-                        ),
-                    );
-                }
-            }
-        }
-    }
-    if let Some(r) = &e.rayleigh {
-        check_rayleigh(at, r, model, p);
-    }
-}
-
-/// Which keys are given is settled by the type; what remains are the ranges.
-fn check_rayleigh(at: &str, r: &RayleighSpec, model: Option<&Model>, p: &mut Problems) {
-    match r {
-        RayleighSpec::Given { alpha, beta } => {
-            for (field, v) in [(format!("{at}.rayleigh.alpha"), alpha), (format!("{at}.rayleigh.beta"), beta)] {
-                p.within(&field, *v, -1e-300, f64::INFINITY, "[0, ∞)");
-            }
-        }
-        RayleighSpec::Modes { modes, ratios } => {
-            if let Some(model) = model {
-                let dof_count = 3 * model.node_count() - model.support_count();
-                for (k, m) in modes.iter().enumerate() {
-                    if *m < 1 || *m > dof_count {
-                        p.add(
-                            format!("{at}.rayleigh.modes[{k}]"),
-                            format!("is {m}; must lie in 1..={dof_count} (the model has {dof_count} DOF)"),
-                        );
-                    }
-                }
-            }
-            if modes[0] == modes[1] {
-                p.add(format!("{at}.rayleigh.modes"), "the two modes must differ");
-            }
-            check_ratios(at, ratios, p);
-        }
-        RayleighSpec::AutoModes { ratios, .. } => check_ratios(at, ratios, p),
-    }
-}
-
-fn check_ratios(at: &str, ratios: &[f64; 2], p: &mut Problems) {
-    for (k, z) in ratios.iter().enumerate() {
-        p.within(&format!("{at}.rayleigh.ratios[{k}]"), *z, -1e-300, 1.0, "[0, 1)");
-    }
-}
-
 /// Longest case name: it names the run directory, and with case ids below it the paths
 /// stay well inside the 255-byte limit of a file name.
 const MAX_NAME: usize = 100;
@@ -623,7 +500,7 @@ fn check_stage_name(field: &str, name: &str, earlier: &[&str], p: &mut Problems)
 const RESERVED_GROUPS: [&str; 4] = ["model", "structure_analysis", "formfinding", "equilibrium"];
 
 /// "no earlier stage `x`", with the nearest earlier name when one is close.
-fn unknown_stage(name: &str, earlier: &[&str]) -> String {
+pub(in crate::config) fn unknown_stage(name: &str, earlier: &[&str]) -> String {
     let near = earlier
         .iter()
         .copied()
@@ -693,7 +570,7 @@ fn check_limits(l: &LimitSpec, p: &mut Problems) {
 
 /// The steps of one stage against `limits.max_steps` (time steps and folding steps bound
 /// the work and the output a config can ask for).
-fn check_steps(field: &str, steps: f64, what: &str, p: &mut Problems) {
+pub(in crate::config) fn check_steps(field: &str, steps: f64, what: &str, p: &mut Problems) {
     let max = p.1.max_steps;
     if steps > max as f64 {
         let how = match p.1.lifted {
@@ -711,293 +588,11 @@ fn check_steps(field: &str, steps: f64, what: &str, p: &mut Problems) {
 /// use (the bisection itself is iterative and would go deeper).
 const MAX_CUTS: u32 = 30;
 
-fn check_cuts(field: &str, cuts: u32, p: &mut Problems) {
+pub(in crate::config) fn check_cuts(field: &str, cuts: u32, p: &mut Problems) {
     if cuts > MAX_CUTS {
         p.add(
             field,
             format!("is {cuts}; at most {MAX_CUTS} halvings (2^{MAX_CUTS} sub-steps) are allowed"),
         );
-    }
-}
-
-fn check_transient(name: &str, t: &TransientSpec, model: Option<&Model>, p: &mut Problems) {
-    p.positive(&format!("{name}.dt"), t.dt);
-    p.positive(&format!("{name}.duration"), t.duration);
-    check_steps(
-        &format!("{name}.duration"),
-        t.duration / t.dt,
-        &format!("{:e} s at Δt = {:e} s is", t.duration, t.dt),
-        p,
-    );
-    if t.dt > t.duration {
-        p.add(
-            format!("{name}.dt"),
-            format!(
-                "{} s is longer than the duration {} s: the stage would take no step",
-                t.dt, t.duration
-            ),
-        );
-    }
-    check_cuts(&format!("{name}.max_cuts"), t.max_cuts, p);
-    p.within(&format!("{name}.newmark_gamma"), t.newmark_gamma, 0.0, 1.0, "(0, 1)");
-    p.within(&format!("{name}.newmark_beta"), t.newmark_beta, 0.0, 0.5 + 1e-12, "(0, 0.5]");
-    if let Some(l) = &t.load {
-        p.positive(&format!("{name}.load.duration"), l.duration);
-        if let Some(model) = model {
-            for e in l.groups.iter().filter_map(|g| model.group(g).err()) {
-                p.add(format!("{name}.load.groups"), e.to_string());
-            }
-        }
-    }
-}
-
-fn check_static(at: &str, s: &super::StaticSpec, gravity: bool, model: Option<&Model>, p: &mut Problems) {
-    if s.steps == 0 {
-        p.add(format!("{at}.steps"), "is 0; must be ≥ 1");
-    }
-    check_steps(&format!("{at}.steps"), s.steps as f64, "is", p);
-    check_cuts(&format!("{at}.max_cuts"), s.max_cuts, p);
-    if s.loads.is_empty() && !gravity {
-        p.add(at, "nothing to apply: give `loads` or `gravity`");
-    }
-    if s.control.is_some() && s.loads.is_empty() {
-        p.add(
-            format!("{at}.control"),
-            "displacement control scales the `loads` pattern: give `loads`",
-        );
-    }
-    if let Some(c) = &s.control {
-        if !(c.displacement != 0.0 && c.displacement.is_finite()) {
-            p.add(
-                format!("{at}.control.displacement"),
-                format!("is {}; must be a finite number ≠ 0", c.displacement),
-            );
-        }
-    }
-    let Some(model) = model else { return };
-    for (k, l) in s.loads.iter().enumerate() {
-        if let Err(e) = model.node_set(&l.nodes, &l.groups) {
-            p.add(format!("{at}.loads[{k}]"), e.to_string());
-        }
-    }
-    if let Some(c) = &s.control {
-        match model.nodes.iter().find(|n| n.id == c.node) {
-            None => p.add(format!("{at}.control.node"), model.unknown_node(&c.node).to_string()),
-            Some(n) if n.support[c.axis.index()] => p.add(
-                format!("{at}.control.axis"),
-                format!(
-                    "node `{}` is supported in {}: control a free direction",
-                    n.id,
-                    crate::model::AXES[c.axis.index()]
-                ),
-            ),
-            Some(_) => {}
-        }
-    }
-}
-
-fn check_folding(at: &str, f: &FoldSpec, model: Option<&Model>, p: &mut Problems) {
-    if f.steps == 0 {
-        p.add(format!("{at}.steps"), "is 0; must be ≥ 1");
-    }
-    check_steps(&format!("{at}.steps"), f.steps as f64, "is", p);
-    check_cuts(&format!("{at}.max_cuts"), f.max_cuts, p);
-    let Some(model) = model else { return };
-    if let Some(k) = f.eigen {
-        let dof_count = 3 * model.node_count() - model.support_count();
-        if k == 0 || k > dof_count {
-            p.add(
-                format!("{at}.eigen"),
-                format!("is {k}; must lie in 1..={dof_count} (the model's free DOF)"),
-            );
-        }
-    }
-    for (k, s) in f.prescribe.iter().enumerate() {
-        if let Err(e) = model.group(&s.group) {
-            p.add(format!("{at}.prescribe[{k}].group"), e.to_string());
-        }
-        if s.target == FoldTarget::ToBase {
-            if let Err(e) = model.group("base") {
-                p.add(format!("{at}.prescribe[{k}].to_base"), e.to_string());
-            }
-        }
-    }
-}
-
-/// The loads, ground motion and initial conditions of a transient: every node set names
-/// known nodes and at least one; time functions have positive durations and frequencies
-/// and tables increasing times; ground motion needs supports to move; an initial
-/// displacement or velocity may not move a supported direction.
-fn check_transient_loading(name: &str, t: &TransientSpec, supported: bool, model: Option<&Model>, p: &mut Problems) {
-    for (k, l) in t.loads.iter().enumerate() {
-        check_node_set(&format!("{name}.loads[{k}]"), &l.nodes, &l.groups, model, p);
-        check_time_function(&format!("{name}.loads[{k}].time"), &l.time, p);
-    }
-    if let Some(g) = &t.ground_motion {
-        check_time_function(&format!("{name}.ground_motion.time"), &g.time, p);
-        if !supported {
-            p.add(
-                format!("{name}.ground_motion"),
-                "the model has no support for the ground to move: fix some directions (`fix` of `model.nodes`), or give the forces as `loads`",
-            );
-        }
-    }
-    check_actuation(name, &t.actuation, model, p);
-    let Some(initial) = &t.initial else { return };
-    for (what, entries) in [("displacement", &initial.displacement), ("velocity", &initial.velocity)] {
-        for (k, e) in entries.iter().enumerate() {
-            let field = format!("{name}.initial.{what}[{k}]");
-            check_node_set(&field, &e.nodes, &e.groups, model, p);
-            if let Some(model) = model {
-                check_not_supported(&field, what, e, model, p);
-            }
-        }
-    }
-}
-
-/// Each actuation names known members, at least one, none taken by an earlier entry; its
-/// scale is positive and its rest length factor 1 + (scale − 1) f(t) stays positive over
-/// the range of its time function.
-fn check_actuation(name: &str, actuation: &[ActuationSpec], model: Option<&Model>, p: &mut Problems) {
-    let mut taken: Vec<Option<usize>> = model.map_or(Vec::new(), |m| vec![None; m.members.len()]);
-    for (k, a) in actuation.iter().enumerate() {
-        let field = format!("{name}.actuation[{k}]");
-        check_time_function(&format!("{field}.time"), &a.time, p);
-        p.positive(&format!("{field}.scale"), a.scale);
-        let (low, high) = time_function_range(&a.time);
-        let lowest = (1.0 + (a.scale - 1.0) * low).min(1.0 + (a.scale - 1.0) * high);
-        if a.scale > 0.0 && lowest <= 0.0 {
-            p.add(
-                format!("{field}.scale"),
-                format!(
-                    "{} with a time function between {low} and {high} gives rest lengths down to {lowest} times the start's; they must stay positive",
-                    a.scale
-                ),
-            );
-        }
-        if a.members.is_empty() && a.groups.is_empty() {
-            p.add(field, "names no member: give `members` (ids) or `groups` (member groups)");
-            continue;
-        }
-        let Some(model) = model else { continue };
-        match model.member_set(&a.members, &a.groups) {
-            Err(e) => p.add(field, e.to_string()),
-            Ok(members) => {
-                for m in members {
-                    if let Some(earlier) = taken[m].replace(k) {
-                        p.add(
-                            field.clone(),
-                            format!(
-                                "member `{}` is also actuated by {name}.actuation[{earlier}]; a member follows one actuation: merge them or split the groups",
-                                model.members[m].id
-                            ),
-                        );
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// The least and greatest value a time function takes.
-fn time_function_range(f: &TimeFunctionSpec) -> (f64, f64) {
-    match f {
-        TimeFunctionSpec::Constant => (1.0, 1.0),
-        TimeFunctionSpec::Step { .. } | TimeFunctionSpec::Ramp { .. } | TimeFunctionSpec::HalfSine { .. } => (0.0, 1.0),
-        TimeFunctionSpec::Harmonic { .. } => (-1.0, 1.0),
-        TimeFunctionSpec::Table { points, .. } => points
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1]))),
-    }
-}
-
-/// A non-zero initial `what` on a supported direction, each node and direction named.
-fn check_not_supported(field: &str, what: &str, e: &NodalVectorSpec, model: &Model, p: &mut Problems) {
-    let Ok(nodes) = model.node_set(&e.nodes, &e.groups) else { return };
-    for n in nodes {
-        let node = &model.nodes[n];
-        for a in (0..3).filter(|&a| node.support[a] && e.value[a] != 0.0) {
-            p.add(
-                format!("{field}.value"),
-                format!(
-                    "node `{}` is supported in {}: an initial {what} there ({}) would move the support; set that component to 0 or leave the node out",
-                    node.id,
-                    ["x", "y", "z"][a],
-                    e.value[a]
-                ),
-            );
-        }
-    }
-}
-
-/// `nodes` and `groups` of the entry at `field` name known nodes, at least one.
-fn check_node_set(field: &str, nodes: &[String], groups: &[String], model: Option<&Model>, p: &mut Problems) {
-    if nodes.is_empty() && groups.is_empty() {
-        p.add(field, crate::model::ModelError::EmptyNodeSet.to_string());
-        return;
-    }
-    let Some(model) = model else { return };
-    let before = p.0.len();
-    for id in nodes.iter().filter(|id| !model.nodes.iter().any(|n| &n.id == *id)) {
-        p.add(format!("{field}.nodes"), model.unknown_node(id).to_string());
-    }
-    for e in groups.iter().filter_map(|g| model.group(g).err()) {
-        p.add(format!("{field}.groups"), e.to_string());
-    }
-    if p.0.len() == before {
-        if let Err(e) = model.node_set(nodes, groups) {
-            p.add(field, e.to_string());
-        }
-    }
-}
-
-/// Durations and frequencies positive, a table's points at least two with times
-/// strictly increasing (a table read from a file was checked as it was read).
-fn check_time_function(field: &str, f: &TimeFunctionSpec, p: &mut Problems) {
-    match f {
-        TimeFunctionSpec::Constant => {}
-        TimeFunctionSpec::Step { duration } => p.positive(&format!("{field}.step.duration"), *duration),
-        TimeFunctionSpec::Ramp { duration } => p.positive(&format!("{field}.ramp.duration"), *duration),
-        TimeFunctionSpec::HalfSine { duration } => p.positive(&format!("{field}.half_sine.duration"), *duration),
-        TimeFunctionSpec::Harmonic {
-            frequency,
-            phase,
-            duration,
-        } => {
-            p.positive(&format!("{field}.harmonic.frequency"), *frequency);
-            if !phase.is_finite() {
-                p.add(format!("{field}.harmonic.phase"), format!("is {phase}; must be finite"));
-            }
-            if let Some(d) = duration {
-                p.positive(&format!("{field}.harmonic.duration"), *d);
-            }
-        }
-        TimeFunctionSpec::Table { file, points } => {
-            let field = format!("{field}.table");
-            match (file, points.len()) {
-                (Some(_), 0) => {}
-                (Some(_), _) => p.add(field.clone(), "give `file` or `points`, not both"),
-                (None, n) if n < 2 => p.add(
-                    format!("{field}.points"),
-                    format!("has {n} point(s); a table needs at least 2 `[time, value]` pairs"),
-                ),
-                (None, _) => {}
-            }
-            for (i, pt) in points.iter().enumerate() {
-                if !(pt[0].is_finite() && pt[1].is_finite()) {
-                    p.add(format!("{field}.points[{i}]"), format!("{pt:?} is not finite"));
-                } else if i > 0 && pt[0] <= points[i - 1][0] {
-                    p.add(
-                        format!("{field}.points[{i}]"),
-                        format!(
-                            "time {} is not after points[{}]'s {}; times must increase strictly: sort the points and remove duplicates",
-                            pt[0],
-                            i - 1,
-                            points[i - 1][0]
-                        ),
-                    );
-                }
-            }
-        }
     }
 }

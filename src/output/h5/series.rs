@@ -6,7 +6,7 @@ use super::netcdf::{describe, str_attr, varlen, Dims};
 use super::{Error, GZIP_LEVEL, MIN_CLEARANCE, MIN_CLEARANCE_PAIR, PAIR};
 use crate::model::AXES;
 use crate::output::chunk::ChunkEncoder;
-use crate::record::{ClearanceEvent, Constraints, EventKind, Frame, ModelRecord, StageKind, StageLayout};
+use crate::record::{ClearanceEvent, Constraints, EventKind, Frame, ModelRecord, StageLayout};
 use hdf5::{Dataset, Group};
 
 /// Node and member ids, the labels of the `node` and `member` dimensions.
@@ -187,10 +187,7 @@ impl Series {
         dimensions(&mut g, &constraints, ids, record)?;
         let mut columns = vec![time];
         if folding {
-            let what = match layout.stage.kind {
-                StageKind::Folding => "applied fraction of the prescribed displacement",
-                _ => "load factor: applied fraction of the total load (under displacement control: the factor on the `loads` pattern)",
-            };
+            let what = layout.stage.kind.fraction().unwrap_or_default();
             columns.push(g.streamed("fraction", &[], chunk, "1", what)?);
         }
         columns.push(g.streamed("position", &["node", "xyz"], chunk, "m", "node position")?);

@@ -51,6 +51,17 @@ impl StageKind {
         matches!(self, StageKind::Folding | StageKind::Static)
     }
 
+    /// What the fraction of a static stage's step is (None: not a static stage).
+    pub fn fraction(self) -> Option<&'static str> {
+        match self {
+            StageKind::Folding => Some("applied fraction of the prescribed displacement"),
+            StageKind::Static => {
+                Some("load factor: applied fraction of the total load (under displacement control: the factor on the `loads` pattern)")
+            }
+            _ => None,
+        }
+    }
+
     /// A stage that records a series of steps (a group with a `time` dimension).
     pub fn is_stepped(self) -> bool {
         matches!(self, StageKind::Static | StageKind::Transient | StageKind::Folding)

@@ -9,6 +9,7 @@
 //! shift-invert Lanczos on the sparse K_T), and so does the stability checks' lowest
 //! eigenvalue. Below it every path is the dense one it always was, bit for bit.
 
+use super::sequence::{Reached, Run, SequenceStage, StageSummary};
 use super::{record_error, Analysis, Settings};
 use crate::dynamics::Rayleigh;
 use crate::error::{Error, Result};
@@ -140,6 +141,17 @@ impl EigenSummary {
             alpha: self.rayleigh_alpha,
             beta: self.rayleigh_beta,
         }
+    }
+}
+
+impl SequenceStage for Eigen {
+    fn stage(&self) -> &Stage {
+        &self.stage
+    }
+
+    fn run_from(&self, start: &Reached, run: &Run, recorder: &mut dyn Recorder) -> Result<(Reached, StageSummary)> {
+        let (state, eigen) = Analysis::run(self, run.structure, start.state.clone(), run.settings, recorder)?;
+        Ok((start.under_same_loads(state), StageSummary::Eigen(eigen)))
     }
 }
 

@@ -5,12 +5,13 @@
 
 use super::eigen::{modes, ModeSolver};
 use super::frames::{non_finite, FrameBuilder};
+use super::sequence::{Reached, Run, SequenceStage, StageSummary};
 use super::EquilibriumSummary;
 use super::{record_error, solve_error, Analysis, Settings, StaticEquilibrium};
 use crate::dynamics::Energy;
 use crate::error::{Error, Result};
 use crate::model::{height, Model};
-use crate::record::{Constraints, Recorder, Stage};
+use crate::record::{Constraints, Recorder, Stage, StageLayout};
 use crate::solve::{bisect, newton, NewtonSettings, NewtonWorkspace, Residual, SolveError};
 use crate::structure::{State, Structure};
 use crate::tsm::{tangent_sparsity, Assembly, DofMap};
@@ -238,6 +239,25 @@ fn free_dofs(model: &Model, prescribed: &Prescribed) -> DofMap {
         mask[n][a] = true;
     }
     DofMap::new(model, &mask)
+}
+
+impl SequenceStage for Folding {
+    fn stage(&self) -> &Stage {
+        &self.stage
+    }
+
+    fn layout(&self, model: &Model) -> StageLayout {
+        StageLayout {
+            constraints: self.constraints(model),
+            path_modes: self.modes,
+            ..StageLayout::plain(model, self.stage.clone())
+        }
+    }
+
+    fn run_from(&self, start: &Reached, run: &Run, recorder: &mut dyn Recorder) -> Result<(Reached, StageSummary)> {
+        let (state, fold) = Analysis::run(self, run.structure, start.state.clone(), run.settings, recorder)?;
+        Ok((start.under_same_loads(state), StageSummary::Folding(fold)))
+    }
 }
 
 impl Analysis for Folding {

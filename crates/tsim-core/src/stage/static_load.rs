@@ -5,6 +5,7 @@
 //! r = f_ext − p(u); what the stage applies stays on in every later stage.
 
 use super::frames::{non_finite, FrameBuilder};
+use super::sequence::{Reached, Run, SequenceStage, StageSummary};
 use super::{record_error, solve_error, Analysis, EquilibriumSummary, Settings, StaticEquilibrium};
 use crate::dynamics::Energy;
 use crate::error::{Error, Result};
@@ -468,6 +469,19 @@ impl Analysis for StaticLoad {
             ..State::at_rest(asm.x)
         };
         Ok((end, steps.summary))
+    }
+}
+
+impl SequenceStage for StaticLoad {
+    fn stage(&self) -> &Stage {
+        &self.stage
+    }
+
+    /// The loads of its start stay on, with its pattern at the factor it ended at.
+    fn run_from(&self, start: &Reached, run: &Run, recorder: &mut dyn Recorder) -> Result<(Reached, StageSummary)> {
+        let (state, statics) = Analysis::run(self, run.structure, start.state.clone(), run.settings, recorder)?;
+        let dead_load = self.dead_load(&start.dead_load, statics.load_factor);
+        Ok((Reached { state, dead_load }, StageSummary::Static(statics)))
     }
 }
 

@@ -4,6 +4,7 @@
 //! figures the checks need.
 
 use super::frames::{non_finite, FrameBuilder, Motion};
+use super::sequence::{Reached, Run, SequenceStage, StageSummary};
 use super::EquilibriumSummary;
 use super::{record_error, solve_error, Analysis, Settings};
 use crate::dynamics::{
@@ -11,7 +12,7 @@ use crate::dynamics::{
 };
 use crate::error::{Error, Result};
 use crate::model::{shape_error, MemberKind, Model};
-use crate::record::{Recorder, Stage};
+use crate::record::{Recorder, Stage, StageLayout};
 use crate::solve::NewtonReport;
 use crate::structure::{State, Structure};
 use crate::tsm::{Assembly, DofMap};
@@ -38,6 +39,79 @@ pub struct Transient {
     pub actuators: Vec<Actuator>,
     /// What is added to the state the stage starts from.
     pub initial: Initial,
+}
+
+/// A transient as a stage of the sequence, with what it takes from earlier stages.
+#[derive(Clone, Debug)]
+pub struct PlannedTransient {
+    /// The stage (undamped: `rayleigh_from` gives its damping).
+    pub stage: Transient,
+    /// The list index of the eigen stage whose Rayleigh α, β damp this one.
+    pub rayleigh_from: Option<usize>,
+    /// The state index whose shape this stage's is compared with.
+    pub compare_to: Option<usize>,
+}
+
+impl SequenceStage for PlannedTransient {
+    fn stage(&self) -> &Stage {
+        &self.stage.stage
+    }
+
+    fn layout(&self, model: &Model) -> StageLayout {
+        StageLayout {
+            actuated: !self.stage.actuators.is_empty(),
+            ..StageLayout::plain(model, self.stage.stage.clone())
+        }
+    }
+
+    fn run_from(&self, start: &Reached, run: &Run, recorder: &mut dyn Recorder) -> Result<(Reached, StageSummary)> {
+        let rayleigh = self.rayleigh_from.and_then(|k| match &run.earlier[k] {
+            StageSummary::Eigen(e) => Some(e.rayleigh()),
+            _ => None,
+        });
+        let stage = Transient {
+            rayleigh: rayleigh.unwrap_or_default(),
+            ..self.stage.clone()
+        };
+        // The shape error at every step, for the time it comes within 1 % of the compared shape.
+        let compared = self.compare_to.map(|k| &run.reached[k].state);
+        let towards = compared.map(|s| &s.positions[..]);
+        let (end, transient) = stage.run_towards(run.structure, start.state.clone(), run.settings, recorder, towards)?;
+        let figures = TransientStageSummary::new(transient, &end, compared);
+        Ok((start.under_same_loads(end), StageSummary::Transient(figures)))
+    }
+}
+
+/// A transient's figures and, with `compare_to` (deployment: the pre-fold equilibrium),
+/// how far it ended from that shape.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct TransientStageSummary {
+    /// The time stepping's figures.
+    #[serde(flatten)]
+    pub transient: TransientSummary,
+    /// RMS over nodes of the distance to the compared shape, over the tower height.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shape_error: Option<f64>,
+    /// The same against the mirror image z → −z of the compared shape: small when the
+    /// tower deployed downwards (inverted).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mirror_shape_error: Option<f64>,
+    /// Node positions at the end [m].
+    #[serde(skip)]
+    pub final_positions: Vec<Vector3<f64>>,
+}
+
+impl TransientStageSummary {
+    /// The stage's figures and how far it ended from the `compared` state.
+    fn new(transient: TransientSummary, end: &State, compared: Option<&State>) -> Self {
+        let errors = compared.map(|c| shape_error(&end.positions, &c.positions));
+        TransientStageSummary {
+            transient,
+            shape_error: errors.map(|e| e.0),
+            mirror_shape_error: errors.map(|e| e.1),
+            final_positions: end.positions.clone(),
+        }
+    }
 }
 
 /// Initial conditions on top of the state a transient starts from.
