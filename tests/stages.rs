@@ -86,6 +86,7 @@ fn the_paper_sections_are_shorthand_for_a_list() {
         eigen: None,
         transient: None,
         folding: None,
+        hold: None,
     };
     let transient = TransientSpec {
         damped: false,
@@ -168,6 +169,7 @@ fn a_static_stage_from_a_loaded_state_adds_its_loads() {
         eigen: None,
         transient: None,
         folding: None,
+        hold: None,
     };
     let two = CaseConfig {
         stages: vec![entry("gravity", StaticSpec::default()), entry("load", load(150.0))],

@@ -211,9 +211,9 @@ pub struct ControlSpec {
     pub displacement: f64,
 }
 
-fn ten() -> usize {
+pub(in crate::config) fn ten() -> usize {
     10
 }
-fn six() -> u32 {
+pub(in crate::config) fn six() -> u32 {
     6
 }

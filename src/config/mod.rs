@@ -20,6 +20,7 @@ mod validate;
 
 pub use input::{excerpt, read_input, MAX_INPUT_BYTES};
 pub use json_schema::{json_schema, SCHEMA_FILE};
+pub use kinds::{HoldSpec, RestChangeSpec};
 pub use limits::{bytes_text, Estimate, LimitSpec, Limits, Part, MAX_MEMORY_GB, MAX_OUTPUT_GB, MAX_STEPS};
 pub use loading::*;
 pub use materials::{library, LawSpec, MaterialSpec};

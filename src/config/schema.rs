@@ -1,5 +1,6 @@
+use super::kinds::HoldSpec;
 use super::limits::LimitSpec;
-use super::loading::{ActuationSpec, AssignSpec, GroundMotionSpec, InitialSpec, NodalForceSpec, PointMassSpec, StaticSpec};
+use super::loading::{six, ten, ActuationSpec, AssignSpec, GroundMotionSpec, InitialSpec, NodalForceSpec, PointMassSpec, StaticSpec};
 use super::materials::MaterialSpec;
 use crate::dynamics::{DampingTangent, LoadProfile, NewmarkParams};
 use crate::model::generate::TowerSpec;
@@ -90,6 +91,9 @@ pub struct StageEntry {
     pub transient: Option<TransientSpec>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub folding: Option<FoldSpec>,
+    /// Rest lengths changed in static steps, the loads of the start held.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hold: Option<HoldSpec>,
 }
 
 /// A generated tower, a generated grid, or explicit nodes and members.
@@ -438,12 +442,6 @@ fn default_gamma() -> f64 {
 }
 fn default_cuts() -> u32 {
     NewmarkParams::default().max_cuts
-}
-fn six() -> u32 {
-    6
-}
-fn ten() -> usize {
-    10
 }
 
 /// Folding by prescribed displacement.

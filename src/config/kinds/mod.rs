@@ -5,11 +5,13 @@
 
 mod eigen;
 mod folding;
+mod hold;
 mod statics;
 mod transient;
 
 pub(super) use eigen::{check_eigen, eigen_stage};
 pub(super) use folding::{check_folding, folding};
+pub use hold::{HoldSpec, RestChangeSpec};
 pub(super) use statics::{check_static, static_stage};
 pub(super) use transient::{check_transient, check_transient_loading, transient};
 
@@ -21,7 +23,7 @@ use crate::record::{Stage, StageKind};
 use crate::stage::sequence::{PlannedStage, SequenceStage};
 
 /// The key of every kind an entry can give, in [`StageEntry::kinds`]'s order.
-pub const KEYS: [&str; 4] = ["static", "eigen", "transient", "folding"];
+pub const KEYS: [&str; 5] = ["static", "eigen", "transient", "folding", "hold"];
 
 impl StageEntry {
     /// The registry: the settings of every kind the entry gives (at most one is valid).
@@ -31,6 +33,7 @@ impl StageEntry {
             self.eigen.as_ref().map(|s| s as &dyn StageSpec),
             self.transient.as_ref().map(|s| s as &dyn StageSpec),
             self.folding.as_ref().map(|s| s as &dyn StageSpec),
+            self.hold.as_ref().map(|s| s as &dyn StageSpec),
         ]
     }
 

@@ -31,6 +31,8 @@ pub enum StageKind {
     Transient,
     /// Prescribed displacement in static steps.
     Folding,
+    /// Rest lengths changed in static steps under the loads held.
+    Hold,
 }
 
 impl StageKind {
@@ -43,12 +45,13 @@ impl StageKind {
             StageKind::Eigen => "eigen",
             StageKind::Transient => "transient",
             StageKind::Folding => "folding",
+            StageKind::Hold => "hold",
         }
     }
 
     /// A stage of static steps (no velocities; `time` is the applied fraction).
     pub fn is_static(self) -> bool {
-        matches!(self, StageKind::Folding | StageKind::Static)
+        matches!(self, StageKind::Folding | StageKind::Static | StageKind::Hold)
     }
 
     /// What the fraction of a static stage's step is (None: not a static stage).
@@ -58,13 +61,17 @@ impl StageKind {
             StageKind::Static => {
                 Some("load factor: applied fraction of the total load (under displacement control: the factor on the `loads` pattern)")
             }
+            StageKind::Hold => Some("applied fraction of the rest-length change (the loads held)"),
             _ => None,
         }
     }
 
     /// A stage that records a series of steps (a group with a `time` dimension).
     pub fn is_stepped(self) -> bool {
-        matches!(self, StageKind::Static | StageKind::Transient | StageKind::Folding)
+        matches!(
+            self,
+            StageKind::Static | StageKind::Transient | StageKind::Folding | StageKind::Hold
+        )
     }
 }
 

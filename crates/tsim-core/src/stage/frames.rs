@@ -48,6 +48,9 @@ pub struct FrameBuilder {
     pub modes: Option<(Vec<f64>, Vec<Vector3<f64>>)>,
     /// Follows the struts' clearance (`None`: not followed).
     clearance: Option<Tracker>,
+    /// A static stage that changes rest lengths: its frames carry them (a transient's
+    /// carry them when its Newmark run is actuated).
+    pub actuated: bool,
 }
 
 /// The largest out-of-balance of the whole structure over a stage's recorded steps.
@@ -96,6 +99,7 @@ impl FrameBuilder {
             check: EquilibriumCheck::default(),
             modes: None,
             clearance: structure.struts.clone().map(Tracker::new),
+            actuated: false,
         }
     }
 
@@ -193,7 +197,7 @@ impl FrameBuilder {
             velocities: motion.map(|_| self.velocities.as_slice()),
             forces: &self.forces,
             lengths: &self.lengths,
-            rest_lengths: motion.map(|m| m.newmark).filter(|nm| nm.is_actuated()).map(|nm| nm.rest_lengths()),
+            rest_lengths: (self.actuated || motion.is_some_and(|m| m.newmark.is_actuated())).then_some(&asm.rest[..]),
             energy,
             applied,
             reactions: &self.reactions,

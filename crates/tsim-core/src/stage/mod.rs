@@ -8,6 +8,7 @@ pub mod eigen;
 pub mod fold;
 pub mod formfind;
 mod frames;
+pub mod hold;
 pub mod measure;
 pub mod sequence;
 pub mod static_load;

@@ -5,6 +5,7 @@
 
 use super::eigen::EigenSummary;
 use super::fold::FoldSummary;
+use super::hold::HoldSummary;
 use super::static_load::StaticSummary;
 pub use super::transient::{PlannedTransient, TransientStageSummary};
 use super::Settings;
@@ -68,6 +69,8 @@ pub enum StageSummary {
     Transient(TransientStageSummary),
     /// A folding stage's.
     Folding(FoldSummary),
+    /// A hold stage's.
+    Hold(HoldSummary),
 }
 
 /// A state the stages have reached, with the loads that hold it.
