@@ -1,6 +1,6 @@
 //! From the config's stages to the planned list ([`crate::stage::sequence`]): the
 //! `stages` entries as written, or the paper's sections in the paper's order (their
-//! shorthand). Each stage kind's settings become its stage object here.
+//! shorthand). A listed entry is planned by its kind's `StageSpec` (`config/kinds`).
 
 use super::kinds::{eigen_stage, folding, static_stage, transient, EntryPlan, StageSpec};
 use super::loading::{StartFrom, StaticSpec};
