@@ -635,6 +635,49 @@ fn collect_waits_for_no_run() {
     assert!(free.status.success(), "{}", String::from_utf8_lossy(&free.stderr));
 }
 
+/// A rerun that cannot take over a result.h5 must leave it whole (issue 29: a reader's
+/// lock on it made `--force` fail and truncated the complete file). The outputs are created
+/// beside the old ones and renamed over them: the rerun succeeds while a reader holds the
+/// old file (an HDF5 reader's shared lock), and that reader goes on reading the old bytes.
+#[test]
+fn a_rerun_replaces_a_file_a_reader_holds_without_harming_it() {
+    use std::io::Read;
+    use std::os::fd::AsRawFd;
+    let dir = scratch("replace");
+    let out = dir.path().to_str().unwrap();
+    assert!(tsim(&["run", SWEEP, "--quiet", "--out", out]).status.success());
+    let case = dir.path().join("small/cable-nylon_zeta-0.1");
+    let old = std::fs::read(case.join("result.h5")).unwrap();
+    let mut held = std::fs::File::open(case.join("result.h5")).unwrap();
+    // The lock an HDF5 reader takes (flock, shared), which a truncating create cannot get.
+    assert_eq!(unsafe { libc::flock(held.as_raw_fd(), libc::LOCK_SH | libc::LOCK_NB) }, 0);
+    let rerun = tsim(&["run", SWEEP, "--quiet", "--out", out, "--force", "--only", "cable-nylon_zeta-0.1"]);
+    assert!(rerun.status.success(), "{}", String::from_utf8_lossy(&rerun.stderr));
+    let mut seen = Vec::new();
+    held.read_to_end(&mut seen).unwrap();
+    assert!(
+        seen == old,
+        "the reader's file changed under it ({} of {} bytes)",
+        seen.len(),
+        old.len()
+    );
+    let status = with_h5(&case.join("result.h5"), |f| {
+        f.attr("status")
+            .unwrap()
+            .read_scalar::<hdf5::types::FixedUnicode<512>>()
+            .unwrap()
+            .as_str()
+            .to_string()
+    });
+    assert_eq!(status, "complete");
+    let leftovers: Vec<_> = std::fs::read_dir(&case)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .filter(|n| n.to_string_lossy().ends_with(".new"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
 /// Values that would run forever, overflow the stack or find nothing are rejected before
 /// any work, each at its line: a step longer than its stage, a bisection deeper than 30
 /// halvings (it recurses once per halving), negative or zero measure coefficients, a
