@@ -680,6 +680,50 @@ fn csv_table_errors_name_file_and_line() {
     assert!(e.contains(&format!("cannot read `{csv}`: is not a regular file")), "{e}");
 }
 
+/// A table is read only from beside the config (issue 29: `../../etc/passwd` was read and
+/// its rows echoed): a name that leaves the config's directory, an absolute path or a link
+/// pointing out is refused at the `file:` line naming the resolved path; `table_dirs`
+/// opts a directory in, and one that does not exist is an error of its own line.
+#[test]
+fn tables_are_read_only_from_beside_the_config_unless_opted_in() {
+    let scratch_dir = scratch("csv-outside");
+    let (dir, data) = (scratch_dir.path().join("configs"), scratch_dir.path().join("data"));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::create_dir_all(&data).unwrap();
+    std::fs::write(data.join("rec.csv"), "0,0\n0.05,1\n0.1,0\n").unwrap();
+    std::os::unix::fs::symlink(data.join("rec.csv"), dir.join("linked.csv")).unwrap();
+    let write = |name: &str, head: &str, file: &str| {
+        let path = dir.join(format!("{name}.yaml"));
+        std::fs::write(&path, format!("{head}{}", star_config(&format!("{{ table: {{ file: {file} }} }}")))).unwrap();
+        path
+    };
+    let resolved = data.join("rec.csv").canonicalize().unwrap().display().to_string();
+    for (name, file, shown) in [
+        ("up", "../data/rec.csv", resolved.as_str()),
+        ("absolute", "/etc/passwd", "/etc/passwd"),
+        ("link", "linked.csv", resolved.as_str()),
+    ] {
+        let path = write(name, "", file);
+        let e = load_errors(&path);
+        // The `file:` key is on line 20 of `star_config`.
+        assert!(e.contains(&format!("{}:20:", path.display())), "{name}: {e}");
+        assert!(
+            e.contains(&format!("`{shown}` lies outside the config's directory")) && e.contains("table_dirs"),
+            "{name}: {e}"
+        );
+        assert!(!e.contains("root:"), "{name}: a row of the file was echoed: {e}");
+    }
+    let opted = write("opted", "table_dirs: [../data]\n", "../data/rec.csv");
+    let loaded = tsim::run::load(&opted, false).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(loaded.cases.len(), 1);
+    let missing = write("missing", "table_dirs: [../nowhere]\n", "../data/rec.csv");
+    let e = load_errors(&missing);
+    assert!(
+        e.contains(&format!("{}:1:", missing.display())) && e.contains("`table_dirs[0]`") && e.contains("cannot resolve `../nowhere`"),
+        "{e}"
+    );
+}
+
 /// Bad loads, ground motion and initial conditions are value errors at their lines: an
 /// unknown node, an unknown group, an empty node set, a non-positive duration, inline
 /// points out of order, ground motion with no support, an initial velocity on a fixed

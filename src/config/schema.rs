@@ -65,6 +65,10 @@ pub struct CaseConfig {
     /// never written when unset.
     #[serde(default, skip_serializing_if = "LimitSpec::is_unset")]
     pub limits: LimitSpec,
+    /// Directories besides the config file's own that time tables (`table.file`) may be
+    /// read from: relative to the config's directory, or absolute.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub table_dirs: Vec<String>,
 }
 
 /// One stage of `stages`: its name, the stage whose end state it starts from, and one kind

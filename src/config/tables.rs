@@ -7,7 +7,7 @@ use super::input::{excerpt, read_input};
 use super::loading::TimeFunctionSpec;
 use super::schema::CaseConfig;
 use super::validate::{FieldError, ValueError};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A table that could not be read: a field of the config (the file is missing, located
 /// by the caller at the field's line) or a line of the CSV file.
@@ -39,6 +39,7 @@ impl CaseConfig {
     /// the file name; reports every problem of every table.
     pub fn resolve_tables(&mut self, dir: &Path) -> Result<(), Vec<TableError>> {
         let mut errors = Vec::new();
+        let allowed = self.table_directories(dir, &mut errors);
         for (field, spec) in self.time_functions_mut() {
             let TimeFunctionSpec::Table { file, points } = spec else { continue };
             // With both given, `validate` reports it; the file is not read.
@@ -47,6 +48,10 @@ impl CaseConfig {
             };
             let field = format!("{field}.table.file");
             let path = dir.join(name);
+            if let Err(message) = inside(&path, &allowed) {
+                errors.push(TableError::Field(FieldError { field, message }));
+                continue;
+            }
             let text = read_input(&path).and_then(|b| String::from_utf8(b).map_err(|_| "is not UTF-8 text; save it as UTF-8".into()));
             match text {
                 Ok(text) => match parse_table(&text, &path.display().to_string(), &field) {
@@ -68,6 +73,45 @@ impl CaseConfig {
             Err(errors)
         }
     }
+}
+
+impl CaseConfig {
+    /// The directories tables may be read from, resolved (links followed): `dir`, the
+    /// config's, and those of `table_dirs`; one that does not resolve is an error of its field.
+    fn table_directories(&self, dir: &Path, errors: &mut Vec<TableError>) -> Vec<PathBuf> {
+        let mut allowed: Vec<PathBuf> = dir.canonicalize().into_iter().collect();
+        for (k, d) in self.table_dirs.iter().enumerate() {
+            match dir.join(d).canonicalize() {
+                Ok(p) if p.is_dir() => allowed.push(p),
+                Ok(_) => errors.push(field_error(format!("table_dirs[{k}]"), format!("`{d}` is not a directory"))),
+                Err(e) => errors.push(field_error(
+                    format!("table_dirs[{k}]"),
+                    format!("cannot resolve `{d}` (relative to the config's directory): {e}"),
+                )),
+            }
+        }
+        allowed
+    }
+}
+
+fn field_error(field: String, message: String) -> TableError {
+    TableError::Field(FieldError { field, message })
+}
+
+/// Ok when `path`, resolved (`..` and links followed), lies in one of the `allowed`
+/// directories: a table name cannot read an arbitrary file (`../../etc/shadow`, a link to
+/// one) and echo its rows in an error. A path that does not resolve is left to the read,
+/// whose error names it.
+fn inside(path: &Path, allowed: &[PathBuf]) -> Result<(), String> {
+    let Ok(resolved) = path.canonicalize() else { return Ok(()) };
+    if allowed.iter().any(|d| resolved.starts_with(d)) {
+        return Ok(());
+    }
+    Err(format!(
+        "`{}` lies outside the config's directory{}: tables are read only from beside the config; move it there, or list its directory under `table_dirs`",
+        resolved.display(),
+        if allowed.len() > 1 { " and `table_dirs`" } else { "" }
+    ))
 }
 
 /// Rows `t, f` of a CSV text (comma separated; blank lines skipped; the first row may be
