@@ -244,13 +244,12 @@ impl<R: Recorder + Send + 'static> Recorder for Background<R> {
         let State::Direct(recorder) = &mut self.state else {
             return joined;
         };
-        match (&joined, outcome) {
-            (Err(e), Outcome::Complete) => {
-                recorder.finish(&Outcome::Failed(format!("recording failed: {e}")))?;
-            }
-            _ => recorder.finish(outcome)?,
-        }
-        joined
+        let finished = match (&joined, outcome) {
+            (Err(e), Outcome::Complete) => recorder.finish(&Outcome::Failed(format!("recording failed: {e}"))),
+            _ => recorder.finish(outcome),
+        };
+        // The worker's error came first; what finishing then failed on follows from it.
+        joined.and(finished)
     }
 }
 
@@ -377,7 +376,8 @@ mod tests {
         .build()
     }
 
-    /// Logs the calls it receives; fails its frame call at step `fail_at`.
+    /// Logs the calls it receives; fails its frame call at step `fail_at`, and then its
+    /// `finish` too (as a file's last block fails to write on a full disk).
     struct Log {
         calls: Arc<Mutex<Vec<String>>>,
         fail_at: Option<usize>,
@@ -412,7 +412,10 @@ mod tests {
         }
         fn finish(&mut self, outcome: &Outcome) -> RecordResult {
             self.calls.lock().unwrap().push(format!("finish {outcome}"));
-            Ok(())
+            match self.fail_at {
+                Some(_) => Err("cannot write the last block".into()),
+                None => Ok(()),
+            }
         }
     }
 
@@ -445,7 +448,9 @@ mod tests {
             },
             "test",
         );
-        // The failure shows at a later call, at the latest at `finish`.
+        // The failure shows at a later call, at the latest at `finish`; the first error is
+        // the one reported, not what finishing then failed on (issue 29: a full disk was
+        // reported as a block that "does not continue the dataset").
         let _ = drive(&mut bg, &model, 10, 1);
         let err = bg.finish(&Outcome::Complete).unwrap_err();
         assert_eq!(err.to_string(), "disk full");

@@ -11,7 +11,9 @@ pub mod replay;
 pub use background::Background;
 
 use crate::config::OutputSpec;
-use crate::record::{Recorder, Recorders};
+use crate::record::{
+    Constraints, EigenRecord, FormFindRecord, Frame, ModelRecord, Outcome, RecordResult, Recorder, Recorders, RigidityRecord, Stage,
+};
 use std::path::Path;
 
 type Error = Box<dyn std::error::Error + Send + Sync>;
@@ -30,6 +32,54 @@ fn replacing<T>(path: &Path, create: impl FnOnce(&Path) -> Result<T, Error>) -> 
         let _ = std::fs::remove_file(&new);
     }
     created.map_err(|e| format!("{}: {e}", path.display()).into())
+}
+
+/// A file's recorder whose errors name the file (a full disk otherwise reads
+/// "H5Dwrite_chunk failed" of no file).
+struct Named<R> {
+    path: String,
+    inner: R,
+}
+
+impl<R> Named<R> {
+    fn new(path: &Path, inner: R) -> Self {
+        Named {
+            path: path.display().to_string(),
+            inner,
+        }
+    }
+}
+
+/// `result` with its error prefixed by `path`.
+fn named(path: &str, result: RecordResult) -> RecordResult {
+    result.map_err(|e| format!("{path}: {e}").into())
+}
+
+impl<R: Recorder> Recorder for Named<R> {
+    fn model(&mut self, r: &ModelRecord) -> RecordResult {
+        named(&self.path, self.inner.model(r))
+    }
+    fn formfinding(&mut self, r: &FormFindRecord) -> RecordResult {
+        named(&self.path, self.inner.formfinding(r))
+    }
+    fn rigidity(&mut self, r: &RigidityRecord) -> RecordResult {
+        named(&self.path, self.inner.rigidity(r))
+    }
+    fn eigen(&mut self, r: &EigenRecord) -> RecordResult {
+        named(&self.path, self.inner.eigen(r))
+    }
+    fn begin_stage(&mut self, s: &Stage, c: &Constraints) -> RecordResult {
+        named(&self.path, self.inner.begin_stage(s, c))
+    }
+    fn frame(&mut self, f: &Frame) -> RecordResult {
+        named(&self.path, self.inner.frame(f))
+    }
+    fn end_stage(&mut self, s: &Stage) -> RecordResult {
+        named(&self.path, self.inner.end_stage(s))
+    }
+    fn finish(&mut self, outcome: &Outcome) -> RecordResult {
+        named(&self.path, self.inner.finish(outcome))
+    }
 }
 
 /// The file recorders a case's `outputs` asks for, `result.h5` and `replay.mcap` in `dir`,
@@ -52,15 +102,15 @@ pub fn file_recorders(
 ) -> Result<Box<dyn Recorder + Send>, Error> {
     let mut files: Vec<Box<dyn Recorder + Send>> = Vec::new();
     if outputs.hdf5 {
-        let mut h5 = replacing(&dir.join("result.h5"), |p| h5::Hdf5Recorder::create(p, case_id, config_yaml))?;
+        let path = dir.join("result.h5");
+        let mut h5 = replacing(&path, |p| h5::Hdf5Recorder::create(p, case_id, config_yaml))?;
         h5.write_params(params)?;
-        files.push(Box::new(h5));
+        files.push(Box::new(Named::new(&path, h5)));
     }
     if outputs.mcap {
-        let mcap = replacing(&dir.join("replay.mcap"), |p| {
-            replay::McapRecorder::create(p, case_id, outputs.replay_rate)
-        })?;
-        files.push(Box::new(mcap));
+        let path = dir.join("replay.mcap");
+        let mcap = replacing(&path, |p| replay::McapRecorder::create(p, case_id, outputs.replay_rate))?;
+        files.push(Box::new(Named::new(&path, mcap)));
     }
     let files = Recorders(files);
     Ok(if background && !files.0.is_empty() {

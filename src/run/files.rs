@@ -9,6 +9,8 @@ use std::path::{Path, PathBuf};
 /// Writes `bytes` to `path` so that a reader sees the old file or the whole new one, never
 /// a part, and the new one survives a crash once this returns: a temporary file beside it,
 /// flushed to disk, renamed over it, and the directory entry flushed.
+/// A failure names `path` (a full disk otherwise reads "No space left on device" of no
+/// file), and leaves no temporary file behind.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let dir = path.parent().unwrap_or(Path::new("."));
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
@@ -17,11 +19,17 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     // follow links, and a leftover of a killed run is removed first (the entry, not what
     // it may point to).
     let _ = std::fs::remove_file(&tmp);
-    let mut file = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
-    file.write_all(bytes)?;
-    file.sync_all()?;
-    drop(file);
-    std::fs::rename(&tmp, path)?;
+    let write = || {
+        let mut file = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        drop(file);
+        std::fs::rename(&tmp, path)
+    };
+    if let Err(e) = write() {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(std::io::Error::new(e.kind(), format!("{}: {e}", path.display())));
+    }
     std::fs::File::open(dir)?.sync_all()
 }
 
@@ -387,5 +395,20 @@ mod tests {
         write_atomic(&path, b"second").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"second");
         assert_eq!(std::fs::read_dir(dir).unwrap().count(), 1, "no temporary file left");
+    }
+
+    /// A write that fails (here the rename: a non-empty directory stands at the path; on
+    /// a full disk, the write) names the path and leaves no temporary file (issue 29:
+    /// ".outcome.json.<pid>.tmp" stayed behind, the error named no file).
+    #[test]
+    fn a_failed_atomic_write_names_the_path_and_cleans_up() {
+        let scratch_dir = scratch("atomic-fail");
+        let dir = scratch_dir.path();
+        let path = dir.join("outcome.json");
+        std::fs::create_dir_all(path.join("occupied")).unwrap();
+        let e = write_atomic(&path, b"lost").unwrap_err().to_string();
+        assert!(e.starts_with(&format!("{}: ", path.display())), "{e}");
+        let names: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names, ["outcome.json"], "a temporary file left");
     }
 }

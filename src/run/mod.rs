@@ -371,8 +371,10 @@ fn run_one(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Ca
         .map_err(std::io::Error::other)
         .and_then(|text| files::write_atomic(&dir.join("outcome.json"), &text));
     if let Err(e) = written {
+        // The case's own failure (a full disk: its result.h5 could not be written) first.
+        let before = outcome.reason.take().map_or(String::new(), |r| format!("{r}; then "));
         outcome.status = CaseStatus::Failed;
-        outcome.reason = Some(format!("cannot write outcome.json: {e}"));
+        outcome.reason = Some(format!("{before}cannot write outcome.json: {e}"));
     }
     progress.done(&case.id, &outcome.describe(), wall_seconds);
     outcome

@@ -352,12 +352,17 @@ impl Recorder for Hdf5Recorder {
         self.open()?.close_stage()
     }
 
+    /// The status is set even when the last block cannot be written (a full disk): the
+    /// file then reads "failed", never "running", and the block's error is returned.
     fn finish(&mut self, outcome: &Outcome) -> RecordResult {
         let mut open = self.open.take().ok_or("HDF5 recorder already finished")?;
-        if open.current.is_some() {
-            open.close_stage()?;
-        }
-        open.set_status(&outcome.to_string())
+        let closed = if open.current.is_some() { open.close_stage() } else { Ok(()) };
+        let status = match (&closed, outcome) {
+            (Err(e), Outcome::Complete) => Outcome::Failed(format!("recording failed: {e}")).to_string(),
+            _ => outcome.to_string(),
+        };
+        let set = open.set_status(&status);
+        closed.and(set)
     }
 }
 
