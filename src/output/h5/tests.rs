@@ -407,3 +407,45 @@ fn dropped_recorder_is_not_complete() {
     drop(rec);
     assert_eq!(status(&path), "failed: recorder dropped before finish");
 }
+
+/// When the last block cannot be written at `finish` (a full disk; here the dataset was
+/// extended underneath), the status still says failed, with why: before, `finish` returned
+/// on the block's error and the file read "running" forever.
+#[test]
+fn a_failing_last_block_still_fails_the_status() {
+    let model = TowerSpec {
+        struts: 3,
+        stages: 1,
+        ..TowerSpec::paper()
+    }
+    .build();
+    let (_dir, path) = temp_path("last-block.h5");
+    let mut rec = Hdf5Recorder::create(&path, "c", "").unwrap();
+    let stage = Stage::new(StageKind::Transient, "free_vibration");
+    rec.model(&ModelRecord {
+        model: &model,
+        rest_lengths: &[1.0; 12],
+        masses: &[1.0; 6],
+        mass_reading: "physical",
+        stages: &[StageLayout::plain(&model, stage.clone())],
+    })
+    .unwrap();
+    // Three frames, held in the unwritten block: the stage is not ended.
+    struct Unended<'r>(&'r mut Hdf5Recorder);
+    impl Recorder for Unended<'_> {
+        fn begin_stage(&mut self, s: &Stage, c: &Constraints) -> RecordResult {
+            self.0.begin_stage(s, c)
+        }
+        fn frame(&mut self, f: &Frame) -> RecordResult {
+            self.0.frame(f)
+        }
+    }
+    let layout = StageLayout::plain(&model, stage);
+    drive_stage(&mut Unended(&mut rec), &layout, &model.positions(), &[1.0; 12], 2, 1).unwrap();
+    let time = rec.open.as_ref().unwrap().file.dataset("free_vibration/time").unwrap();
+    time.resize(vec![5]).unwrap();
+    let err = rec.finish(&Outcome::Complete).unwrap_err().to_string();
+    assert!(err.contains("does not continue the dataset"), "{err}");
+    let status = status(&path);
+    assert!(status.starts_with("failed: recording failed: /free_vibration/time"), "{status}");
+}
