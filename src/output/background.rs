@@ -244,10 +244,7 @@ impl<R: Recorder + Send + 'static> Recorder for Background<R> {
         let State::Direct(recorder) = &mut self.state else {
             return joined;
         };
-        let finished = match (&joined, outcome) {
-            (Err(e), Outcome::Complete) => recorder.finish(&Outcome::Failed(format!("recording failed: {e}"))),
-            _ => recorder.finish(outcome),
-        };
+        let finished = recorder.finish(&outcome.unless_recording_failed(&joined));
         // The worker's error came first; what finishing then failed on follows from it.
         joined.and(finished)
     }

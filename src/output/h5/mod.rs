@@ -357,11 +357,7 @@ impl Recorder for Hdf5Recorder {
     fn finish(&mut self, outcome: &Outcome) -> RecordResult {
         let mut open = self.open.take().ok_or("HDF5 recorder already finished")?;
         let closed = if open.current.is_some() { open.close_stage() } else { Ok(()) };
-        let status = match (&closed, outcome) {
-            (Err(e), Outcome::Complete) => Outcome::Failed(format!("recording failed: {e}")).to_string(),
-            _ => outcome.to_string(),
-        };
-        let set = open.set_status(&status);
+        let set = open.set_status(&outcome.unless_recording_failed(&closed).to_string());
         closed.and(set)
     }
 }

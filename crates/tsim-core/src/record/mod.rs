@@ -328,6 +328,17 @@ pub enum Outcome {
     Interrupted,
 }
 
+impl Outcome {
+    /// What a file records when its own writing failed with `recording` (Ok: it did not):
+    /// a complete case's file is missing data, so it reads failed; any other outcome stands.
+    pub fn unless_recording_failed<E: std::fmt::Display>(&self, recording: &Result<(), E>) -> Outcome {
+        match (recording, self) {
+            (Err(e), Outcome::Complete) => Outcome::Failed(format!("recording failed: {e}")),
+            _ => self.clone(),
+        }
+    }
+}
+
 impl std::fmt::Display for Outcome {
     /// "complete", "failed: <reason>" or "interrupted": the `status` strings of
     /// result.h5, replay.mcap and outcome.json.
