@@ -724,6 +724,22 @@ fn tables_are_read_only_from_beside_the_config_unless_opted_in() {
     );
 }
 
+/// `tsim check rec.yaml`, run in the config's directory, reads the table beside it: the
+/// config's directory was the empty path, which does not resolve, so every table was
+/// refused as lying outside it.
+#[test]
+fn a_config_named_without_a_directory_reads_its_tables() {
+    let dir = scratch("csv-bare");
+    std::fs::write(dir.path().join("rec.csv"), "0,0\n0.05,1\n0.1,0\n").unwrap();
+    std::fs::write(dir.path().join("bare.yaml"), star_config("{ table: { file: rec.csv } }")).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tsim"))
+        .args(["check", "bare.yaml"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
 /// Bad loads, ground motion and initial conditions are value errors at their lines: an
 /// unknown node, an unknown group, an empty node set, a non-positive duration, inline
 /// points out of order, ground motion with no support, an initial velocity on a fixed

@@ -92,9 +92,13 @@ pub fn parse_case(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
     Ok(cfg)
 }
 
-/// The directory a config file's relative paths start from: that of `origin`.
+/// The directory a config file's relative paths start from: that of `origin`, `.` for a
+/// bare file name (whose parent is the empty path, which does not resolve).
 pub fn config_dir(origin: &str) -> &std::path::Path {
-    std::path::Path::new(origin).parent().unwrap_or(std::path::Path::new(""))
+    match std::path::Path::new(origin).parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => std::path::Path::new("."),
+    }
 }
 
 /// Reads the CSV time tables of `cfg` (parsed from `text`, the file `origin`) into their
@@ -146,5 +150,15 @@ mod tests {
         assert_eq!(non_finite_literal("c: { d: .nan }"), Some((1, ".nan")));
         assert_eq!(non_finite_literal("# .nan in a comment\na: 1 # or .inf here\n"), None);
         assert_eq!(non_finite_literal("source: \"a .inf of text\"\nname: '.nan'\n"), None);
+    }
+
+    /// A config given by a bare file name (`tsim check sweep.yaml`) reads its tables from
+    /// the current directory: its parent, the empty path, did not resolve, so every table
+    /// was refused as lying outside the config's directory.
+    #[test]
+    fn a_bare_file_name_is_in_the_current_directory() {
+        assert_eq!(super::config_dir("sweep.yaml"), std::path::Path::new("."));
+        assert_eq!(super::config_dir("configs/sweep.yaml"), std::path::Path::new("configs"));
+        assert!(super::config_dir("sweep.yaml").canonicalize().is_ok());
     }
 }
