@@ -384,7 +384,28 @@ fn print_check(config: &Path, out: &Path, expanded: &Expanded, w: &mut impl std:
         limit(limits.max_output),
         bytes_text(memory),
         limit(limits.max_memory)
-    )
+    )?;
+    let tables = distinct_tables(cases);
+    if !tables.is_empty() {
+        let points: usize = tables.iter().map(|t| t.len()).sum();
+        writeln!(
+            w,
+            "time tables: {} of {points} points in all, {} held once for every case (in each case's peak above)",
+            tables.len(),
+            bytes_text(16.0 * points as f64)
+        )?;
+    }
+    Ok(())
+}
+
+/// The time tables of `cases`, each once however many cases share it.
+fn distinct_tables(cases: &[tsim::run::Case]) -> Vec<tsim::config::TablePoints> {
+    let mut seen = std::collections::HashSet::new();
+    cases
+        .iter()
+        .flat_map(|c| c.config.table_points())
+        .filter(|t| seen.insert(std::sync::Arc::as_ptr(t) as *const f64))
+        .collect()
 }
 
 /// `tsim run`: every case of `config` (or this shard's); exit 1 when one failed, 130 when

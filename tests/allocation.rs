@@ -80,10 +80,7 @@ fn step_allocations(solver: LinearSolverChoice, loaded: bool) -> Vec<u64> {
     // 300 steps of 1 ms: the launch (0.05 s) covers the first 50, whatever paper.yaml's Δt.
     (deployment.duration, deployment.dt) = (0.3, 0.001);
     if loaded {
-        let table = TimeFunctionSpec::Table {
-            file: None,
-            points: vec![[0.0, 0.0], [0.1, 1.0], [0.2, -1.0], [0.25, 0.0]],
-        };
+        let table = TimeFunctionSpec::table(vec![[0.0, 0.0], [0.1, 1.0], [0.2, -1.0], [0.25, 0.0]]);
         let force = |force, time| NodalForceSpec {
             nodes: vec![],
             groups: vec!["top".into()],

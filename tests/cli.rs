@@ -929,7 +929,7 @@ fn limits_stay_out_of_case_yaml() {
             .unwrap()
             .cases
             .into_iter()
-            .map(|c| c.yaml)
+            .map(|c| c.yaml().unwrap())
             .collect()
     };
     assert_eq!(yaml(&good), yaml(&with));

@@ -299,7 +299,7 @@ fn ground_acceleration_is_the_load_minus_m_a_g() {
     let w = (K / M).sqrt();
     let dt = 2.0 * PI / w / 200.0;
     let steps = 400;
-    let table = TimeFunction::Table(vec![[0.0, 0.0], [0.05, 1.0], [0.1, -0.5], [0.2, 0.0]]);
+    let table = TimeFunction::Table(vec![[0.0, 0.0], [0.05, 1.0], [0.1, -0.5], [0.2, 0.0]].into());
     let ag = Vector3::new(3.0, 0.0, 0.0);
     let s = chain(K, &[M]);
     let ground = Loads {
@@ -355,10 +355,7 @@ fn ground_motion_on_a_prism_equals_nodal_inertia_loads() {
     cfg.eigen = None;
     let fv = cfg.free_vibration.as_mut().unwrap();
     (fv.load, fv.duration, fv.dt, fv.damped) = (None, 0.1, 0.0005, false);
-    let time = TimeFunctionSpec::Table {
-        file: None,
-        points: vec![[0.0, 0.0], [0.02, 1.0], [0.04, -1.0], [0.06, 0.0]],
-    };
+    let time = TimeFunctionSpec::table(vec![[0.0, 0.0], [0.02, 1.0], [0.04, -1.0], [0.06, 0.0]]);
     let ag = [2.0, 0.0, -1.0];
     fv.ground_motion = Some(tsim::config::GroundMotionSpec {
         acceleration: ag,
@@ -529,7 +526,7 @@ fn energy_balance_closes_with_time_varying_and_ground_loads() {
         ],
         ground: Some(GroundMotion {
             acceleration: Vector3::new(4.0, 0.0, 0.0),
-            time: TimeFunction::Table(vec![[0.0, 0.0], [0.1, 1.0], [0.3, -1.0], [0.5, 0.0]]),
+            time: TimeFunction::Table(vec![[0.0, 0.0], [0.1, 1.0], [0.3, -1.0], [0.5, 0.0]].into()),
         }),
     };
     let initial = Initial {
@@ -591,8 +588,9 @@ fn load_errors(path: &std::path::Path) -> String {
 }
 
 /// A table file relative to the config is read into `points` when the config loads; the
-/// resolved config (case.yaml) holds the values and no file name; and the run is the one
-/// with the same points written inline, bit for bit.
+/// resolved config (case.yaml) names the run's copy of it, whose rows read back to the
+/// same points exactly; and the run is the one with the same points written inline, bit
+/// for bit.
 #[test]
 fn csv_table_is_read_into_the_resolved_config() {
     let scratch_dir = scratch("csv-ok");
@@ -602,10 +600,9 @@ fn csv_table_is_read_into_the_resolved_config() {
     let path = dir.join("case.yaml");
     std::fs::write(&path, star_config("{ table: { file: pulse.csv } }")).unwrap();
     let cases = tsim::run::load(&path, false).unwrap_or_else(|e| panic!("{e}")).cases;
-    let yaml = &cases[0].yaml;
-    assert!(!yaml.contains("pulse.csv"), "{yaml}");
+    let yaml = &cases[0].yaml().unwrap();
     let spec = cases[0].config.free_vibration.as_ref().unwrap().ground_motion.as_ref().unwrap();
-    let TimeFunctionSpec::Table { file: None, points } = &spec.time else {
+    let TimeFunctionSpec::Table { file: None, points, .. } = &spec.time else {
         panic!("{:?}", spec.time)
     };
     let rows: Vec<[f64; 2]> = std::fs::read_to_string(fixture)
@@ -618,7 +615,15 @@ fn csv_table_is_read_into_the_resolved_config() {
             [c.next().unwrap(), c.next().unwrap()]
         })
         .collect();
-    assert_eq!(points, &rows);
+    assert_eq!(&points[..], &rows[..]);
+    let kept = cases[0].config.kept_tables();
+    let [(name, _)] = &kept[..] else { panic!("{kept:?}") };
+    assert!(
+        name.starts_with("pulse-") && yaml.contains(&format!("file: ../tables/{name}")),
+        "{yaml}"
+    );
+    let copy = tsim::config::table_csv(points);
+    assert_eq!(tsim::config::parse_table(&copy, "copy.csv", "f").unwrap(), rows, "{copy}");
     let inline = format!("{{ table: {{ points: {rows:?} }} }}");
     let inline_cfg: CaseConfig = parse_case(&star_config(&inline), "inline.yaml").unwrap();
     let (mut a, mut b) = (Log::default(), Log::default());
@@ -891,4 +896,85 @@ fn a_grid_with_slackening_cables_converges_as_dt_halves() {
     eprintln!("successive RMS differences: {diffs:?} m");
     assert!(diffs.windows(2).all(|w| w[1] < w[0]), "{diffs:?}");
     assert!(diffs[0] >= 4.0 * diffs[2], "{diffs:?}");
+}
+
+/// The reproducer of issue 29: a long table in a large sweep. Every case shares the one
+/// copy of its points (each case had its own, and its case.yaml quoted every row: a
+/// 10⁶-row table in 1000 cases made `tsim check` abort at 3.9 GB); a sweep value naming
+/// another file gives the cases holding it that file's points, read once; case.yaml names
+/// the run's copy. 20 000 rows and 200 cases keep the test quick; the sharing is
+/// structural, so the sizes only need to make a copy visible.
+#[test]
+fn the_cases_of_a_sweep_share_one_copy_of_a_table() {
+    let dir = scratch("csv-shared");
+    let rows = |scale: f64| -> String {
+        (0..20_000)
+            .map(|k| format!("{},{}\n", k as f64 * 1e-5, scale * (k as f64).sin()))
+            .collect()
+    };
+    std::fs::write(dir.path().join("long.csv"), rows(1.0)).unwrap();
+    std::fs::write(dir.path().join("other.csv"), rows(2.0)).unwrap();
+    let values: String = (0..100)
+        .map(|k| {
+            format!(
+                "        - {{ label: d{k}, set: {{ free_vibration.duration: {} }} }}\n",
+                0.05 + 0.001 * k as f64
+            )
+        })
+        .collect();
+    let other = "{ acceleration: [0, 1.0, 0], time: { table: { file: other.csv } } }";
+    let text = format!(
+        "{}sweep:\n  axes:\n    - name: rec\n      values:\n        - {{ label: base, set: {{}} }}\n        - {{ label: other, set: {{ free_vibration.ground_motion: {other} }} }}\n    - name: duration\n      values:\n{values}",
+        star_config("{ table: { file: long.csv } }")
+    );
+    let path = dir.path().join("sweep.yaml");
+    std::fs::write(&path, text).unwrap();
+    let cases = tsim::run::load(&path, false).unwrap_or_else(|e| panic!("{e}")).cases;
+    assert_eq!(cases.len(), 200);
+    let table = |c: &tsim::run::Case| c.config.table_points().pop().unwrap();
+    let (base, other) = (table(&cases[0]), table(&cases[100]));
+    assert_eq!((base.len(), other.len()), (20_000, 20_000));
+    assert!(base.iter().zip(other.iter()).any(|(a, b)| a != b), "the two files differ");
+    for (k, c) in cases.iter().enumerate() {
+        let shared = if k < 100 { &base } else { &other };
+        assert!(Arc::ptr_eq(&table(c), shared), "case {} holds its own copy", c.id);
+        let yaml = c.yaml().unwrap();
+        let stem = if k < 100 { "long-" } else { "other-" };
+        assert!(
+            yaml.len() < 4000 && yaml.contains(&format!("file: ../tables/{stem}")),
+            "{}: {yaml}",
+            c.id
+        );
+    }
+}
+
+/// A case.yaml runs as it is, from its directory, and gives the same result.h5, byte for
+/// byte: the run keeps the table it names.
+#[test]
+fn a_case_yaml_with_a_table_reruns_to_the_same_result() {
+    let dir = scratch("csv-rerun");
+    std::fs::write(dir.path().join("rec.csv"), "0,0\n0.03,1\n0.06,-0.5\n0.1,0\n").unwrap();
+    std::fs::write(dir.path().join("star.yaml"), star_config("{ table: { file: rec.csv } }")).unwrap();
+    let run = |config: &std::path::Path, out: &str| {
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_tsim"))
+            .args(["run", "--quiet", "--out", out])
+            .arg(config)
+            .current_dir(dir.path())
+            .status()
+            .unwrap();
+        assert!(status.success(), "{}", config.display());
+    };
+    run(&dir.path().join("star.yaml"), "first");
+    let case = dir.path().join("first/star/star");
+    run(&case.join("case.yaml"), "second");
+    let again = dir.path().join("second/star/star");
+    for file in ["case.yaml", "result.h5"] {
+        assert_eq!(
+            std::fs::read(case.join(file)).unwrap(),
+            std::fs::read(again.join(file)).unwrap(),
+            "{file}"
+        );
+    }
+    let kept: Vec<_> = std::fs::read_dir(dir.path().join("first/star/tables")).unwrap().collect();
+    assert_eq!(kept.len(), 1);
 }

@@ -6,8 +6,9 @@
 //! builds every case's model. No mutant may panic or hang (a table at /dev/zero), every
 //! rejection must say where: a line (`file:N:`, a parse error's `file:N:M:`), and every
 //! case an accepted one makes is one plain directory name. A bounded run here (3000 mutants, a few
-//! seconds); `TSIM_MUTANTS=N` runs more, and `TSIM_MUTANTS_DIR=dir` also writes the
-//! accepted mutants there, for a campaign of runs.
+//! seconds); `TSIM_MUTANTS=N` runs more, and `TSIM_MUTANTS_DIR=dir` also writes every
+//! mutant there, for a campaign (scripts/campaign): `dir/<seed's directory>/m<k>-<seed>-
+//! <ok|no>.yaml`, beside where its seed's tables would be, with the verdict.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use tsim::config::ConfigError;
@@ -149,6 +150,17 @@ fn number_spans(line: &str) -> Vec<(usize, usize)> {
 }
 
 /// Whether an error says where: every value error has a line, a parser error names one.
+/// Writes mutant `k` of the seed `origin` for a campaign, when `TSIM_MUTANTS_DIR` is set.
+fn keep(k: usize, origin: &str, text: &str, verdict: &str) {
+    let Ok(dir) = std::env::var("TSIM_MUTANTS_DIR") else { return };
+    let seed = std::path::Path::new(origin);
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let at = std::path::Path::new(&dir).join(seed.parent().unwrap().strip_prefix(root).unwrap());
+    std::fs::create_dir_all(&at).unwrap();
+    let stem = seed.file_stem().unwrap().to_string_lossy();
+    std::fs::write(at.join(format!("m{k:06}-{stem}-{verdict}.yaml")), text).unwrap();
+}
+
 fn located(e: &ConfigError) -> bool {
     match e {
         ConfigError::Values(errors) => errors.iter().all(|v| v.line.is_some()),
@@ -182,11 +194,10 @@ fn mutated_configs_never_panic_and_every_rejection_has_a_line() {
                     let plain = matches!(parts.next(), Some(std::path::Component::Normal(_))) && parts.next().is_none();
                     assert!(plain, "mutant {k} of {origin}: case id {:?}\n{text}", c.id);
                 }
-                if let Ok(dir) = std::env::var("TSIM_MUTANTS_DIR") {
-                    std::fs::write(format!("{dir}/mutant{k:06}.yaml"), &text).unwrap();
-                }
+                keep(k, origin, &text, "ok");
             }
             Ok(Err(e)) => {
+                keep(k, origin, &text, "no");
                 rejected += 1;
                 if !located(&e) && unlocated.len() < 5 {
                     unlocated.push(format!("mutant {k} of {origin}: {e}\n{text}"));

@@ -17,7 +17,7 @@ const STAGES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/examples/towe
 fn config(path: &str) -> CaseConfig {
     let text = std::fs::read_to_string(path).unwrap();
     let mut cfg = parse_case(&text, path).unwrap_or_else(|e| panic!("{e}"));
-    tsim::config::resolve_tables(&mut cfg, &text, path).unwrap_or_else(|e| panic!("{e}"));
+    tsim::config::resolve_tables(&mut cfg, &text, path, &mut Default::default()).unwrap_or_else(|e| panic!("{e}"));
     cfg
 }
 

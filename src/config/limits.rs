@@ -155,6 +155,9 @@ const WRITER_FIXED: f64 = 16e6;
 /// pattern (fill-in depends on the ordering; the dense stability checks dominate long
 /// before this term does).
 const SPARSE_FILL: f64 = 20.0;
+/// Bytes of a row of a kept table's CSV at most: two shortest round-trip f64 (24 each at
+/// most, `-1.2345678901234567e-300`), a comma and a newline.
+const TABLE_CSV_ROW: f64 = 50.0;
 
 /// Dense n × n matrices held at the peak of a stability check (after form-finding and
 /// after substitution: K_T and faer's eigen decomposition of it, eigenvectors included),
@@ -260,8 +263,9 @@ impl CaseConfig {
         let largest = |parts: Vec<Part>| parts.into_iter().max_by(|a, b| a.bytes.total_cmp(&b.bytes)).unwrap_or_default();
         let output_total = output.iter().map(|p| p.bytes).sum();
         let stage = largest(self.stage_memory(&s, eigen_solver.is_some().then_some(eigen_partial)));
-        let memory = buffers.bytes + stage.bytes;
-        let memory_part = largest(vec![stage, buffers]);
+        let tables = self.table_memory();
+        let memory = buffers.bytes + stage.bytes + tables.bytes;
+        let memory_part = largest(vec![stage, buffers, tables]);
         Estimate {
             output: output_total,
             output_part: largest(output),
@@ -273,6 +277,27 @@ impl CaseConfig {
 
     /// The output of the model record and of each stage's recorded frames, and the steps
     /// of every stage (form-finding and the eigen analysis one each).
+    /// The time tables' points (16 bytes each, shared with the other cases of a sweep, so
+    /// counted in each on the high side) and, for those read from a file, the CSV text
+    /// of the run's copy (up to 50 bytes a row) while it is written.
+    fn table_memory(&self) -> Part {
+        let (mut points, mut text, mut largest) = (0.0, 0.0_f64, (0, String::from("model")));
+        for (field, kept, rows) in self.tables() {
+            points += rows.len() as f64;
+            if kept.is_some() {
+                text = text.max(TABLE_CSV_ROW * rows.len() as f64);
+            }
+            if rows.len() > largest.0 {
+                largest = (rows.len(), field);
+            }
+        }
+        Part {
+            field: largest.1,
+            what: format!("time tables of {points} points"),
+            bytes: 16.0 * points + text,
+        }
+    }
+
     fn stage_output(&self, s: &Sizes, sections: &[Section]) -> (Vec<Part>, f64) {
         let (nodes, members) = (s.nodes, s.members);
         let every = self.outputs.every.max(1) as f64;

@@ -6,6 +6,7 @@
 
 use super::materials::MaterialSpec;
 use super::schema::Axis;
+use std::sync::Arc;
 
 /// A force on each node of a set, scaled in time by `time` (static loads ignore `time`).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
@@ -70,9 +71,32 @@ pub enum TimeFunctionSpec {
     Table {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         file: Option<String>,
-        #[serde(default, skip_serializing_if = "Vec::is_empty")]
-        points: Vec<[f64; 2]>,
+        // Shared: every case of a sweep holds the one copy read (`CaseConfig::share_tables`).
+        #[serde(default, skip_serializing_if = "no_points")]
+        points: TablePoints,
+        /// For points read from a file: the name of the run's copy (`tables/`), which
+        /// `case.yaml` names instead of holding the rows (`CaseConfig::recorded`).
+        #[serde(skip)]
+        kept_as: Option<Arc<str>>,
     },
+}
+
+/// A table's (t, f) points, shared by the cases of a sweep that hold them.
+pub type TablePoints = Arc<[[f64; 2]]>;
+
+impl TimeFunctionSpec {
+    /// A table of `points` given inline.
+    pub fn table(points: impl Into<TablePoints>) -> Self {
+        TimeFunctionSpec::Table {
+            file: None,
+            points: points.into(),
+            kept_as: None,
+        }
+    }
+}
+
+fn no_points(points: &TablePoints) -> bool {
+    points.is_empty()
 }
 
 /// Uniform base (ground) acceleration a_g(t) = `acceleration` · f(t) [m/s²] of every

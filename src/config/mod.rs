@@ -25,7 +25,7 @@ pub use limits::{bytes_text, Estimate, LimitSpec, Limits, Part, MAX_MEMORY_GB, M
 pub use loading::*;
 pub use materials::{library, LawSpec, MaterialSpec};
 pub use schema::*;
-pub use tables::{parse_table, TableError};
+pub use tables::{parse_table, table_csv, SharedTables, TableError, TableFiles, KEPT_TABLES};
 pub use validate::{ConfigError, FieldError, ValueError};
 
 /// Line of a dotted field path in the YAML text (see `locate`).
@@ -86,7 +86,7 @@ fn non_finite_literal(text: &str) -> Option<(usize, &str)> {
 /// tables are read relative to the directory of `origin`.
 pub fn parse_case(text: &str, origin: &str) -> Result<CaseConfig, ConfigError> {
     let mut cfg = parse(text, origin)?;
-    resolve_tables(&mut cfg, text, origin)?;
+    resolve_tables(&mut cfg, text, origin, &mut TableFiles::default())?;
     cfg.validate()
         .map_err(|errors| ConfigError::Values(locate_errors(origin, text, errors)))?;
     Ok(cfg)
@@ -102,9 +102,10 @@ pub fn config_dir(origin: &str) -> &std::path::Path {
 }
 
 /// Reads the CSV time tables of `cfg` (parsed from `text`, the file `origin`) into their
-/// points; a missing file is reported at its field's line, a bad row at its CSV line.
-pub fn resolve_tables(cfg: &mut CaseConfig, text: &str, origin: &str) -> Result<(), ConfigError> {
-    cfg.resolve_tables(config_dir(origin)).map_err(|errors| {
+/// points (sharing those `read` holds); a missing file is reported at its field's line, a
+/// bad row at its CSV line.
+pub fn resolve_tables(cfg: &mut CaseConfig, text: &str, origin: &str, read: &mut TableFiles) -> Result<(), ConfigError> {
+    cfg.resolve_tables(config_dir(origin), read).map_err(|errors| {
         let (mut fields, mut rows) = (Vec::new(), Vec::new());
         for e in errors {
             match e {

@@ -1,13 +1,16 @@
 //! Time tables from CSV files: `time: {table: {file: rec.csv}}` is read, relative to the
 //! config file's directory, into the table's `points` when the config is loaded, so that
-//! the resolved config (`case.yaml`) holds the values the case ran with and no later step
-//! touches the file.
+//! no later step touches the file. The cases of a sweep share the points read, and the run
+//! keeps one copy of each table in its `tables/` directory, named by its CRC-32, which
+//! every `case.yaml` names: the resolved config still says exactly what the case ran with
+//! (and runs as it is), without a copy of a 10⁶-row record in each of 1000 cases.
 
 use super::input::{excerpt, read_input};
-use super::loading::TimeFunctionSpec;
+use super::loading::{TablePoints, TimeFunctionSpec};
 use super::schema::CaseConfig;
 use super::validate::{FieldError, ValueError};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// A table that could not be read: a field of the config (the file is missing, located
 /// by the caller at the field's line) or a line of the CSV file.
@@ -36,12 +39,15 @@ impl CaseConfig {
     }
 
     /// Reads every table given by `file` (relative to `dir`) into its `points` and drops
-    /// the file name; reports every problem of every table.
-    pub fn resolve_tables(&mut self, dir: &Path) -> Result<(), Vec<TableError>> {
+    /// the file name; reports every problem of every table. A file `read` holds already is
+    /// shared, not read again.
+    pub fn resolve_tables(&mut self, dir: &Path, read: &mut TableFiles) -> Result<(), Vec<TableError>> {
         let mut errors = Vec::new();
         let allowed = self.table_directories(dir, &mut errors);
         for (field, spec) in self.time_functions_mut() {
-            let TimeFunctionSpec::Table { file, points } = spec else { continue };
+            let TimeFunctionSpec::Table { file, points, kept_as } = spec else {
+                continue;
+            };
             // With both given, `validate` reports it; the file is not read.
             let (Some(name), true) = (file.as_ref(), points.is_empty()) else {
                 continue;
@@ -52,10 +58,19 @@ impl CaseConfig {
                 errors.push(TableError::Field(FieldError { field, message }));
                 continue;
             }
+            if let Some((rows, kept)) = path.canonicalize().ok().and_then(|p| read.0.get(&p)) {
+                (*points, *kept_as, *file) = (rows.clone(), Some(kept.clone()), None);
+                continue;
+            }
             let text = read_input(&path).and_then(|b| String::from_utf8(b).map_err(|_| "is not UTF-8 text; save it as UTF-8".into()));
             match text {
                 Ok(text) => match parse_table(&text, &path.display().to_string(), &field) {
-                    Ok(read) => (*points, *file) = (read, None),
+                    Ok(rows) => {
+                        let rows: TablePoints = rows.into();
+                        let kept: Arc<str> = kept_name(name, &rows).into();
+                        read.0.extend(path.canonicalize().ok().map(|p| (p, (rows.clone(), kept.clone()))));
+                        (*points, *kept_as, *file) = (rows, Some(kept), None);
+                    }
                     Err(e) => errors.extend(e.into_iter().map(TableError::Csv)),
                 },
                 Err(e) => errors.push(TableError::Field(FieldError {
@@ -73,6 +88,150 @@ impl CaseConfig {
             Err(errors)
         }
     }
+}
+
+/// The points of a config's tables, taken out by field (`CaseConfig::take_tables`) so that
+/// the cases of a sweep share them: a sweep builds each case from a JSON copy of its base,
+/// which would copy a table of 10⁶ rows into every case (a 1000-case sweep of one such
+/// table asked for more memory than the machine had before any limit was checked).
+#[derive(Clone, Debug, Default)]
+pub struct SharedTables(Vec<(String, TablePoints, Option<Arc<str>>)>);
+
+/// The table files read so far, by resolved path: the cases of a sweep that name one file
+/// share its points.
+#[derive(Debug, Default)]
+pub struct TableFiles(std::collections::HashMap<PathBuf, (TablePoints, Arc<str>)>);
+
+impl CaseConfig {
+    /// Takes the points of every table with points out of the config, leaving them empty.
+    pub fn take_tables(&mut self) -> SharedTables {
+        let mut shared = SharedTables::default();
+        for (field, spec) in self.time_functions_mut() {
+            if let TimeFunctionSpec::Table { points, kept_as, .. } = spec {
+                if !points.is_empty() {
+                    shared.0.push((field, std::mem::take(points), kept_as.take()));
+                }
+            }
+        }
+        shared
+    }
+
+    /// Puts `shared` back into the tables it was taken from (sharing, not copying) where
+    /// the table is still empty and no path of `set` (dotted, as a sweep sets them) reaches
+    /// its field: a set table is the sweep's, not the base's.
+    pub fn share_tables(&mut self, shared: &SharedTables, set: &[&str]) {
+        for (field, spec) in self.time_functions_mut() {
+            let TimeFunctionSpec::Table {
+                file: None,
+                points,
+                kept_as,
+            } = spec
+            else {
+                continue;
+            };
+            let Some((_, taken, kept)) = shared.0.iter().find(|(f, ..)| *f == field) else {
+                continue;
+            };
+            if points.is_empty() && !set.iter().any(|path| reaches(path, &field)) {
+                (*points, *kept_as) = (taken.clone(), kept.clone());
+            }
+        }
+    }
+}
+
+/// Where a run keeps the tables its cases read from files, beside the case directories.
+pub const KEPT_TABLES: &str = "tables";
+
+impl CaseConfig {
+    /// The config as `case.yaml` records it: each table read from a file named by the
+    /// run's copy (`../tables/<name>`, allowed by `table_dirs`) instead of its rows.
+    pub fn recorded(&self) -> CaseConfig {
+        let mut out = self.clone();
+        let mut kept = false;
+        for (_, spec) in out.time_functions_mut() {
+            if let TimeFunctionSpec::Table {
+                file,
+                points,
+                kept_as: Some(name),
+            } = spec
+            {
+                (*file, *points) = (Some(format!("../{KEPT_TABLES}/{name}")), Arc::default());
+                kept = true;
+            }
+        }
+        // The config's own `table_dirs` are relative to it, not to case.yaml.
+        out.table_dirs = if kept { vec![format!("../{KEPT_TABLES}")] } else { Vec::new() };
+        out
+    }
+
+    /// The tables the run keeps for this case: (file name, points).
+    pub fn kept_tables(&self) -> Vec<(Arc<str>, TablePoints)> {
+        self.tables()
+            .into_iter()
+            .filter_map(|(_, name, points)| Some((name?, points)))
+            .collect()
+    }
+
+    /// Every table's points (shared with the other cases of a sweep that hold them).
+    pub fn table_points(&self) -> Vec<TablePoints> {
+        self.tables().into_iter().map(|(.., points)| points).collect()
+    }
+
+    /// Every table: its field, the name of the run's copy (read from a file), its points.
+    pub(super) fn tables(&self) -> Vec<(String, Option<Arc<str>>, TablePoints)> {
+        // A clone (the points are shared, not copied) to walk the one list of time
+        // functions there is, the mutable one.
+        let mut walked = self.clone();
+        walked
+            .time_functions_mut()
+            .into_iter()
+            .filter_map(|(field, spec)| match spec {
+                TimeFunctionSpec::Table { points, kept_as, .. } => Some((field, kept_as.clone(), points.clone())),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+/// A table's points as the CSV the run keeps: `t,f` rows in the shortest decimals that
+/// read back to the same numbers, so the copy gives the case exactly what it ran with.
+pub fn table_csv(points: &[[f64; 2]]) -> String {
+    let mut text = String::from("time,value\n");
+    for [t, f] in points {
+        text.push_str(&format!("{t:?},{f:?}\n"));
+    }
+    text
+}
+
+/// The name of the run's copy of a table read from the file `given`: its stem and the
+/// CRC-32 of its CSV (`rec-1a2b3c4d.csv`), so that a changed table is another file and
+/// another `case.yaml`. Reading a copy back gives its own name again.
+fn kept_name(given: &str, points: &[[f64; 2]]) -> String {
+    let crc = format!("{:08x}", zlib_rs::crc32::crc32(0, table_csv(points).as_bytes()));
+    let stem = Path::new(given)
+        .file_stem()
+        .map_or_else(|| "table".into(), |s| s.to_string_lossy().into_owned());
+    let stem = stem.strip_suffix(&format!("-{crc}")).unwrap_or(&stem);
+    // A plain, bounded file name whatever the given one was.
+    let safe = |c: char| {
+        if c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.') {
+            c
+        } else {
+            '_'
+        }
+    };
+    let stem: String = stem.chars().take(64).map(safe).collect();
+    format!("{stem}-{crc}.csv")
+}
+
+/// Whether setting the dotted `path` changes the time function at `field`
+/// (`deployment.loads[0].time`): one holds the other.
+fn reaches(path: &str, field: &str) -> bool {
+    let within = |long: &str, short: &str| {
+        long.strip_prefix(short)
+            .is_some_and(|rest| rest.is_empty() || rest.starts_with(['.', '[']))
+    };
+    within(field, path) || within(path, field)
 }
 
 impl CaseConfig {

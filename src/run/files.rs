@@ -33,6 +33,28 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     std::fs::File::open(dir)?.sync_all()
 }
 
+/// Writes the run's copy of every table `cases` read from a file (`tables/<name>`, named
+/// by their `case.yaml`), unless it is there with the same content.
+pub fn keep_tables(dir: &Path, cases: &[&crate::run::Case]) -> std::io::Result<()> {
+    let mut kept: BTreeMap<std::sync::Arc<str>, crate::config::TablePoints> = BTreeMap::new();
+    for case in cases {
+        kept.extend(case.config.kept_tables());
+    }
+    if kept.is_empty() {
+        return Ok(());
+    }
+    let tables = dir.join(crate::config::KEPT_TABLES);
+    std::fs::create_dir_all(&tables).map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", tables.display())))?;
+    for (name, points) in kept {
+        let text = crate::config::table_csv(&points);
+        let path = tables.join(&*name);
+        if std::fs::read(&path).ok().as_deref() != Some(text.as_bytes()) {
+            write_atomic(&path, text.as_bytes())?;
+        }
+    }
+    Ok(())
+}
+
 /// The files a case writes in its directory.
 const CASE_FILES: [&str; 4] = ["case.yaml", "result.h5", "replay.mcap", "outcome.json"];
 

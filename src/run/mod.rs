@@ -67,8 +67,8 @@ impl OnDisk {
     pub fn of(case: &Case, dir: &Path) -> Self {
         match std::fs::read_to_string(dir.join("case.yaml")) {
             Err(_) => OnDisk::New,
-            Ok(yaml) if yaml != case.yaml => OnDisk::Changed,
-            Ok(_) if already_complete(case, dir).is_some() => OnDisk::Complete,
+            Ok(yaml) if !same_config(case, &yaml) => OnDisk::Changed,
+            Ok(_) if complete_outputs(case, dir).is_some() => OnDisk::Complete,
             Ok(_) => OnDisk::Incomplete,
         }
     }
@@ -226,7 +226,7 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
     };
     let _lock = files::RunLock::shard(&dir, shard.index, shard.count)?;
     // Written first, so that the merge knows every case even if every shard is killed.
-    let plan = Plan::new(cases, shard.count);
+    let plan = Plan::new(cases, shard.count)?;
     plan.write(&dir)?;
     let mine: Vec<&Case> = cases
         .iter()
@@ -242,6 +242,7 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
 
 /// Runs `cases` in the run directory `dir`, reusing the complete ones (not with `--force`).
 fn run_cases(dir: &Path, cases: &[&Case], opts: &RunOptions) -> std::io::Result<Vec<CaseOutcome>> {
+    files::keep_tables(dir, cases)?;
     // Complete cases are reused, reported in one line rather than one each.
     let reused: Vec<Option<CaseOutcome>> = cases
         .iter()
@@ -292,9 +293,17 @@ fn run_cases(dir: &Path, cases: &[&Case], opts: &RunOptions) -> std::io::Result<
 /// checked: rerun.
 fn already_complete(case: &Case, dir: &Path) -> Option<CaseOutcome> {
     let yaml = std::fs::read_to_string(dir.join("case.yaml")).ok()?;
-    if yaml != case.yaml {
-        return None;
-    }
+    same_config(case, &yaml).then(|| complete_outputs(case, dir)).flatten()
+}
+
+/// Whether `yaml`, a case.yaml on disk, is the case's resolved config.
+fn same_config(case: &Case, yaml: &str) -> bool {
+    case.yaml().is_ok_and(|own| own == yaml)
+}
+
+/// The case's outcome when its `outcome.json` says complete and its outputs are the files
+/// it recorded.
+fn complete_outputs(case: &Case, dir: &Path) -> Option<CaseOutcome> {
     let outcome: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("outcome.json")).ok()?).ok()?;
     let recorded: files::OutputFiles = serde_json::from_value(outcome["files"].clone()).ok()?;
     let expected = usize::from(case.config.outputs.hdf5) + usize::from(case.config.outputs.mcap);
@@ -406,8 +415,9 @@ fn draw_figures(dir: &Path) -> String {
 fn execute(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Result<CaseSummary, String> {
     let _ = std::fs::remove_file(dir.join("outcome.json"));
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-    std::fs::write(dir.join("case.yaml"), &case.yaml).map_err(|e| format!("cannot write case.yaml: {e}"))?;
-    let files = crate::output::file_recorders(&case.config.outputs, dir, &case.id, &case.yaml, &case.attrs, background)
+    let yaml = case.yaml().map_err(|e| e.to_string())?;
+    std::fs::write(dir.join("case.yaml"), &yaml).map_err(|e| format!("cannot write case.yaml: {e}"))?;
+    let files = crate::output::file_recorders(&case.config.outputs, dir, &case.id, &yaml, &case.attrs, background)
         .map_err(|e| format!("cannot create outputs: {e}"))?;
     let mut recorder = Recorders(vec![Box::new(interrupt::Check), Box::new(progress.case_bar(&case.id)), files]);
     let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run_case(&case.config, &mut recorder)));

@@ -117,21 +117,23 @@ pub struct Plan {
 }
 
 impl Plan {
-    pub fn new(cases: &[Case], count: usize) -> Plan {
+    pub fn new(cases: &[Case], count: usize) -> std::io::Result<Plan> {
         let shards = assign(cases, count);
-        Plan {
+        Ok(Plan {
             shards: count,
             cases: cases
                 .iter()
                 .zip(shards)
-                .map(|(c, shard)| Planned {
-                    id: c.id.clone(),
-                    params: c.params.clone(),
-                    shard,
-                    config: fingerprint(&c.yaml),
+                .map(|(c, shard)| {
+                    Ok(Planned {
+                        id: c.id.clone(),
+                        params: c.params.clone(),
+                        shard,
+                        config: fingerprint(&c.yaml()?),
+                    })
                 })
-                .collect(),
-        }
+                .collect::<std::io::Result<_>>()?,
+        })
     }
 
     pub fn path(dir: &Path) -> PathBuf {

@@ -56,7 +56,7 @@ pub fn submit(name: &str, cases: &[Case], opts: &SubmitOptions) -> Result<Option
         .or(earlier.as_ref().map(|p| p.shards))
         .unwrap_or(cases.len().min(MAX_DEFAULT_SHARDS))
         .clamp(1, cases.len().max(1));
-    let plan = Plan::new(cases, count);
+    let plan = Plan::new(cases, count).map_err(|e| e.to_string())?;
     let changed = earlier.as_ref() != Some(&plan);
     let incomplete: Vec<usize> = cases
         .iter()

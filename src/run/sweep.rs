@@ -2,7 +2,10 @@
 //! case ids name output directories), each case a full config validated before any work.
 
 use super::CaseOutcome;
-use crate::config::{self, bytes_text, CaseConfig, ConfigError, Estimate, LimitSpec, Limits, Part, SweepAxis, TableError, ValueError};
+use crate::config::{
+    self, bytes_text, CaseConfig, ConfigError, Estimate, LimitSpec, Limits, Part, SharedTables, SweepAxis, TableError, TableFiles,
+    ValueError,
+};
 use crate::output::h5::ParamValue;
 use serde_json::Value;
 use std::collections::HashSet;
@@ -16,13 +19,24 @@ pub struct Case {
     /// (axis name, value label) per axis.
     pub params: Vec<(String, String)>,
     pub config: CaseConfig,
-    /// The resolved config as YAML (`case.yaml`; resume compares it).
-    pub yaml: String,
     /// Its estimated output and peak memory.
     pub estimate: Estimate,
     /// Its sweep parameters as result.h5's root attributes: `sweep.<axis>` (the label, a
     /// number when every label of the axis is one) and `set.<dotted path>` (each value set).
     pub attrs: Vec<(String, ParamValue)>,
+}
+
+impl Case {
+    /// The resolved config as YAML (`case.yaml`; resume compares it), written when asked
+    /// for rather than held: with a table of 10⁶ rows it has some 30 MB, in every case.
+    pub fn yaml(&self) -> std::io::Result<String> {
+        serde_saphyr::to_string(&self.config.recorded()).map_err(|e| {
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("case {}: cannot write the resolved config as YAML: {e}", self.id),
+            )
+        })
+    }
 }
 
 /// Whether an axis' labels are all numbers: then its coordinate is numeric (in result.h5's
@@ -116,7 +130,8 @@ pub const MAX_CASES: usize = 100_000;
 /// `allow_large` (`--allow-large`) lifts them.
 pub fn expand(text: &str, origin: &str, allow_large: bool) -> Result<Expanded, ConfigError> {
     let mut base = config::parse(text, origin)?;
-    config::resolve_tables(&mut base, text, origin)?;
+    let mut read = TableFiles::default();
+    config::resolve_tables(&mut base, text, origin, &mut read)?;
     let axes = base.sweep.clone().unwrap_or_default().axes;
     let limits = Limits::new(&base.limits, allow_large);
     // The base must be valid on its own; cases built on a broken one would only repeat it.
@@ -125,11 +140,7 @@ pub fn expand(text: &str, origin: &str, allow_large: bool) -> Result<Expanded, C
     if !errors.is_empty() {
         return Err(ConfigError::Values(errors));
     }
-    let mut plain = base.clone();
-    plain.sweep = None;
-    // The run's limits are not part of a case: case.yaml stays the same whatever they are.
-    plain.limits = LimitSpec::default();
-    let base_value = serde_json::to_value(&plain).map_err(|e| ConfigError::Io {
+    let (tables, base_value) = case_base(&base).map_err(|e| ConfigError::Io {
         file: origin.into(),
         message: e.to_string(),
     })?;
@@ -138,6 +149,8 @@ pub fn expand(text: &str, origin: &str, allow_large: bool) -> Result<Expanded, C
         origin,
         axes: &axes,
         limits,
+        tables,
+        read: std::cell::RefCell::new(read),
     };
     let total = axes.iter().fold(1_usize, |n, a| n.saturating_mul(a.values.len()));
     if total > MAX_CASES {
@@ -190,6 +203,17 @@ pub fn expand(text: &str, origin: &str, allow_large: bool) -> Result<Expanded, C
     } else {
         Err(ConfigError::Values(errors))
     }
+}
+
+/// What every case is built from: the base without its sweep and limits, as JSON, and
+/// the tables left out of that copy (shared, put back into each case).
+fn case_base(base: &CaseConfig) -> serde_json::Result<(SharedTables, Value)> {
+    let mut plain = base.clone();
+    plain.sweep = None;
+    // The run's limits are not part of a case: case.yaml stays the same whatever they are.
+    plain.limits = LimitSpec::default();
+    let tables = plain.take_tables();
+    Ok((tables, serde_json::to_value(&plain)?))
 }
 
 /// Empty axes and labels unfit for case ids.
@@ -305,6 +329,10 @@ struct Sweep<'a> {
     axes: &'a [SweepAxis],
     /// The run's limits, from the file's `limits` and `--allow-large`.
     limits: Limits,
+    /// The base's tables, left out of its JSON copy and shared by every case.
+    tables: SharedTables,
+    /// The table files read, shared by the cases whose sweep values name them.
+    read: std::cell::RefCell<TableFiles>,
 }
 
 impl Sweep<'_> {
@@ -324,10 +352,6 @@ impl Sweep<'_> {
         } else {
             params.iter().map(|(a, l)| format!("{a}-{l}")).collect::<Vec<_>>().join("_")
         };
-        let yaml = serde_saphyr::to_string(&config).map_err(|e| ConfigError::Io {
-            file: self.origin.into(),
-            message: e.to_string(),
-        })?;
         let mut attrs: Vec<(String, ParamValue)> = params
             .iter()
             .zip(numeric)
@@ -345,7 +369,6 @@ impl Sweep<'_> {
             id,
             params,
             config,
-            yaml,
             estimate,
             attrs,
         })
@@ -396,21 +419,29 @@ impl Sweep<'_> {
             return Err(errors);
         }
         let mut config: CaseConfig = serde_json::from_value(v).map_err(|e| self.unreadable(chosen, base, e.to_string()))?;
+        let set: Vec<&str> = chosen
+            .iter()
+            .enumerate()
+            .flat_map(|(a, &i)| self.axes[a].values[i].set.keys().map(String::as_str))
+            .collect();
+        config.share_tables(&self.tables, &set);
         // A sweep value may name a table file the base does not.
-        config.resolve_tables(config::config_dir(self.origin)).map_err(|errors| {
-            errors
-                .into_iter()
-                .map(|e| match e {
-                    TableError::Field(e) => {
-                        let line = self
-                            .setter_line(chosen, &e.field)
-                            .or_else(|| config::locate_line(self.text, &e.field));
-                        self.error(line, e.field, e.message)
-                    }
-                    TableError::Csv(e) => e,
-                })
-                .collect::<Vec<_>>()
-        })?;
+        config
+            .resolve_tables(config::config_dir(self.origin), &mut self.read.borrow_mut())
+            .map_err(|errors| {
+                errors
+                    .into_iter()
+                    .map(|e| match e {
+                        TableError::Field(e) => {
+                            let line = self
+                                .setter_line(chosen, &e.field)
+                                .or_else(|| config::locate_line(self.text, &e.field));
+                            self.error(line, e.field, e.message)
+                        }
+                        TableError::Csv(e) => e,
+                    })
+                    .collect::<Vec<_>>()
+            })?;
         let estimate = config.validate_with(&self.limits).map_err(|errors| {
             errors
                 .into_iter()

@@ -280,7 +280,7 @@ fn check_time_function(field: &str, f: &TimeFunctionSpec, p: &mut Problems) {
                 p.positive(&format!("{field}.harmonic.duration"), *d);
             }
         }
-        TimeFunctionSpec::Table { file, points } => {
+        TimeFunctionSpec::Table { file, points, .. } => {
             let field = format!("{field}.table");
             match (file, points.len()) {
                 (Some(_), 0) => {}
@@ -393,7 +393,7 @@ fn time_function(spec: &TimeFunctionSpec) -> std::result::Result<TimeFunction, S
             phase,
             duration,
         },
-        TimeFunctionSpec::Table { ref file, ref points } => {
+        TimeFunctionSpec::Table { ref file, ref points, .. } => {
             if points.len() < 2 {
                 let source = file.as_ref().map_or(String::new(), |f| format!(" (file `{f}` not read)"));
                 return Err(format!("a time table needs at least 2 points{source}"));

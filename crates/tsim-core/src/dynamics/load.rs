@@ -46,8 +46,9 @@ pub enum TimeFunction {
         duration: Option<f64>,
     },
     /// Piecewise linear through (t, f), times strictly increasing (at least two points);
-    /// the first value before the first time, the last after the last.
-    Table(Vec<[f64; 2]>),
+    /// the first value before the first time, the last after the last. Shared: the cases
+    /// of a sweep hold one copy of a table they all read (a record may have 10⁶ rows).
+    Table(std::sync::Arc<[[f64; 2]]>),
 }
 
 impl TimeFunction {
@@ -357,7 +358,7 @@ mod tests {
             duration: Some(1.0),
         };
         assert!(near(h.at(0.0), 1.0) && near(h.at(0.25), -1.0) && h.at(1.0) == 0.0);
-        let table = TimeFunction::Table(vec![[0.0, 1.0], [1.0, 3.0], [3.0, -1.0]]);
+        let table = TimeFunction::Table(vec![[0.0, 1.0], [1.0, 3.0], [3.0, -1.0]].into());
         assert_eq!(
             (table.at(-1.0), table.at(0.5), table.at(1.0), table.at(2.0), table.at(9.0)),
             (1.0, 2.0, 3.0, 1.0, -1.0)
@@ -381,7 +382,7 @@ mod tests {
                 phase: 0.0,
                 duration: Some(1.0),
             },
-            TimeFunction::Table(vec![[0.0, 1.0], [1.0, 3.0], [3.0, -1.0]]),
+            TimeFunction::Table(vec![[0.0, 1.0], [1.0, 3.0], [3.0, -1.0]].into()),
         ];
         let h = 1e-7;
         for f in &functions {
@@ -409,7 +410,7 @@ mod tests {
         let ramp = TimeFunction::Ramp { duration: 0.1 };
         let t = (0..25).fold(0.0, |t, _| t + 0.004);
         assert!(t > 0.1 && ramp.rate_before(t) == 10.0 && ramp.rate_after(t) == 0.0, "{t}");
-        let table = TimeFunction::Table(vec![[0.0, 0.0], [0.1, 1.0], [0.2, 1.0]]);
+        let table = TimeFunction::Table(vec![[0.0, 0.0], [0.1, 1.0], [0.2, 1.0]].into());
         assert!(table.rate_before(t) == 10.0 && table.rate_after(t) == 0.0);
     }
 }
