@@ -27,7 +27,7 @@ pub struct Collected {
 /// Err: the directory is in use by a run, or holds no readable `summary.json` (nothing is
 /// written).
 pub fn collect(dir: &Path) -> Result<Collected, String> {
-    let _lock = super::files::RunLock::acquire(dir).map_err(|e| e.to_string())?;
+    let _lock = super::files::RunLock::acquire(dir, super::files::Holder::Collect).map_err(|e| e.to_string())?;
     let summary = dir.join("summary.json");
     let text =
         std::fs::read_to_string(&summary).map_err(|e| format!("{}: {e} (a run directory of `tsim run` holds one)", summary.display()))?;

@@ -186,7 +186,9 @@ pub fn changed(dir: &Path, files: &OutputFiles) -> Option<String> {
 /// removed. A second `tsim run` into the same directory stops with an error instead of
 /// writing the same files (which corrupted them, or hung on HDF5's file locks); shards of
 /// one partition share the directory, since their cases differ, but not with a whole run
-/// nor with shards of another partition. A lock whose holder is gone is stale and taken
+/// nor with shards of another partition. `tsim collect` takes the whole directory too, as
+/// a reader: a run that finds it there waits for it (at most [`READER_WAIT`]) rather than
+/// failing, since collect holds it for as long as it takes to read the files. A lock whose holder is gone is stale and taken
 /// over: on this host its process has ended; from another host, its Slurm job has left
 /// the queue (`squeue`); a lock from another host without a Slurm job stays (two runs
 /// that find the same stale lock at the same instant could both take it over; that needs
@@ -204,6 +206,21 @@ pub fn host() -> String {
 
 const WHOLE: &str = ".lock";
 const SHARD: &str = ".lock.shard-";
+/// The word a reader's lock ends with (after host, process and Slurm job).
+const READER: &str = "collect";
+/// Longest wait of a run for a reader to release the directory: `tsim collect` of the
+/// 27-case sweep reads its files in under a second.
+pub const READER_WAIT: std::time::Duration = std::time::Duration::from_secs(60);
+const READER_POLL: std::time::Duration = std::time::Duration::from_millis(50);
+
+/// Who takes a run directory.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Holder {
+    /// `tsim run` (or a shard of it): writes the cases.
+    Run,
+    /// `tsim collect`: reads them and writes the summaries.
+    Collect,
+}
 
 /// Who holds the lock file at `path`, if it is held: its text ("host pid [slurm job]").
 /// A stale lock is removed.
@@ -257,20 +274,31 @@ fn slurm_job_queued(id: &str) -> bool {
 fn in_use(dir: &Path, holder: &str) -> std::io::Error {
     let mut parts = holder.split_whitespace();
     let (host, pid) = (parts.next().unwrap_or("?"), parts.next().unwrap_or("?"));
-    let job = parts.next().map_or_else(String::new, |j| format!(", Slurm job {j}"));
+    let rest: Vec<&str> = parts.collect();
+    let command = if rest.last() == Some(&READER) { "tsim collect" } else { "tsim run" };
+    let job = rest
+        .iter()
+        .find(|w| **w != READER)
+        .map_or_else(String::new, |j| format!(", Slurm job {j}"));
     std::io::Error::new(
         std::io::ErrorKind::WouldBlock,
         format!(
-            "{} is in use by `tsim run` (process {pid} on host {host}{job}); wait for it, or remove its .lock* file if that process is gone",
+            "{} is in use by `{command}` (process {pid} on host {host}{job}); wait for it, or remove its .lock* file if that process is gone",
             dir.display()
         ),
     )
 }
 
+/// Whether the lock file at `path` is a reader's.
+fn held_by_reader(path: &Path) -> bool {
+    std::fs::read_to_string(path).is_ok_and(|t| t.split_whitespace().last() == Some(READER))
+}
+
 impl RunLock {
-    /// The whole run directory: refused while another run or any shard holds it.
-    pub fn acquire(dir: &Path) -> std::io::Result<RunLock> {
-        let lock = Self::take(dir, WHOLE)?;
+    /// The whole run directory: refused while another run or any shard holds it; a run
+    /// waits for a reader (`tsim collect`) to finish, at most [`READER_WAIT`].
+    pub fn acquire(dir: &Path, who: Holder) -> std::io::Result<RunLock> {
+        let lock = Self::take(dir, WHOLE, who)?;
         match Self::shard_holders(dir)?.into_iter().next() {
             Some((_, holder)) => Err(in_use(dir, &holder)),
             None => Ok(lock),
@@ -280,7 +308,9 @@ impl RunLock {
     /// Shard `index` of `count`: refused while the whole run, the same shard, or a shard
     /// of another count holds the directory.
     pub fn shard(dir: &Path, index: usize, count: usize) -> std::io::Result<RunLock> {
-        let lock = Self::take(dir, &format!("{SHARD}{index}-of-{count}"))?;
+        let lock = Self::take(dir, &format!("{SHARD}{index}-of-{count}"), Holder::Run)?;
+        // A reader of the whole directory (the merge) is waited for as by a whole run.
+        Self::wait_for_reader(dir);
         if let Some(holder) = holder(&dir.join(WHOLE))? {
             return Err(in_use(dir, &holder));
         }
@@ -305,11 +335,25 @@ impl RunLock {
         Ok(held)
     }
 
-    /// Takes the lock file `name` in `dir`, or says who holds it.
-    fn take(dir: &Path, name: &str) -> std::io::Result<RunLock> {
+    /// Waits while a reader holds the whole directory, at most [`READER_WAIT`].
+    fn wait_for_reader(dir: &Path) {
+        let started = std::time::Instant::now();
+        while held_by_reader(&dir.join(WHOLE)) && started.elapsed() < READER_WAIT {
+            std::thread::sleep(READER_POLL);
+        }
+    }
+
+    /// Takes the lock file `name` in `dir` for `who`, or says who holds it; a run waits
+    /// for a reader holding it, at most [`READER_WAIT`].
+    fn take(dir: &Path, name: &str, who: Holder) -> std::io::Result<RunLock> {
         let path = dir.join(name);
         let job = std::env::var("SLURM_JOB_ID").map_or_else(|_| String::new(), |j| format!(" {j}"));
-        let me = format!("{} {}{job}", host(), std::process::id());
+        let reader = if who == Holder::Collect {
+            format!(" {READER}")
+        } else {
+            String::new()
+        };
+        let me = format!("{} {}{job}{reader}", host(), std::process::id());
         // The lock appears whole or not at all: written to a file of this process, then
         // hard-linked to its name, which fails if that exists (atomic, even on NFS). A
         // lock created empty and filled afterwards was read as stale by a second run
@@ -317,22 +361,26 @@ impl RunLock {
         // (Its name is no lock's: other shards list the locks while it exists.)
         let mine = dir.join(format!(".taking-{}{name}", std::process::id()));
         write_atomic(&mine, me.as_bytes())?;
-        let taken = (0..2).try_fold(None, |taken: Option<RunLock>, _| {
-            if taken.is_some() {
-                return Ok(taken);
-            }
+        let started = std::time::Instant::now();
+        let mut stale_taken_over = false;
+        let taken = loop {
             match std::fs::hard_link(&mine, &path) {
-                Ok(()) => Ok(Some(RunLock { path: path.clone() })),
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => match holder(&path)? {
-                    Some(holder) => Err(in_use(dir, &holder)),
-                    // Stale, and removed: try again.
-                    None => Ok(None),
+                Ok(()) => break Ok(RunLock { path: path.clone() }),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => match holder(&path) {
+                    Err(e) => break Err(e),
+                    Ok(Some(_)) if who == Holder::Run && held_by_reader(&path) && started.elapsed() < READER_WAIT => {
+                        std::thread::sleep(READER_POLL)
+                    }
+                    Ok(Some(holder)) => break Err(in_use(dir, &holder)),
+                    // Stale, and removed: try again, once.
+                    Ok(None) if !stale_taken_over => stale_taken_over = true,
+                    Ok(None) => break Err(std::io::Error::other(format!("cannot take {}", path.display()))),
                 },
-                Err(e) => Err(e),
+                Err(e) => break Err(e),
             }
-        });
+        };
         let _ = std::fs::remove_file(&mine);
-        taken?.ok_or_else(|| std::io::Error::other(format!("cannot take {}", path.display())))
+        taken
     }
 }
 
@@ -355,15 +403,44 @@ mod tests {
     fn a_second_lock_is_refused_and_a_stale_one_taken_over() {
         let scratch_dir = scratch("lock");
         let dir = scratch_dir.path();
-        let first = RunLock::acquire(dir).unwrap();
-        let err = RunLock::acquire(dir).err().expect("a second lock while the first is held");
+        let first = RunLock::acquire(dir, Holder::Run).unwrap();
+        let err = RunLock::acquire(dir, Holder::Run)
+            .err()
+            .expect("a second lock while the first is held");
         assert!(err.to_string().contains("in use"), "{err}");
         assert!(RunLock::shard(dir, 0, 2).is_err(), "no shard while the whole run is held");
         drop(first);
         assert!(!dir.join(".lock").exists());
         // A lock of a process that is gone (pid 0 is never a user process) is stale.
         std::fs::write(dir.join(".lock"), format!("{} 0", host())).unwrap();
-        let _taken = RunLock::acquire(dir).unwrap();
+        let _taken = RunLock::acquire(dir, Holder::Run).unwrap();
+    }
+
+    /// A run that finds `tsim collect` reading the directory waits for it and then runs
+    /// (it failed: a run racing collect exited 1 in the campaign); collect finding a run is
+    /// refused, naming the run, and a second collect is refused naming the collect.
+    #[test]
+    fn a_run_waits_for_a_reader_and_a_reader_is_refused_by_a_run() {
+        let scratch_dir = scratch("reader");
+        let dir = scratch_dir.path().to_path_buf();
+        let reading = RunLock::acquire(&dir, Holder::Collect).unwrap();
+        let err = RunLock::acquire(&dir, Holder::Collect).err().expect("two readers at once");
+        assert!(err.to_string().contains("in use by `tsim collect`"), "{err}");
+        let released = std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_millis(300));
+            drop(reading);
+        });
+        let started = std::time::Instant::now();
+        let run = RunLock::acquire(&dir, Holder::Run).unwrap();
+        assert!(
+            started.elapsed() >= std::time::Duration::from_millis(250),
+            "{:?}",
+            started.elapsed()
+        );
+        released.join().unwrap();
+        let err = RunLock::acquire(&dir, Holder::Collect).err().expect("collect while a run holds it");
+        assert!(err.to_string().contains("in use by `tsim run`"), "{err}");
+        drop(run);
     }
 
     #[test]
@@ -374,11 +451,11 @@ mod tests {
         let second = RunLock::shard(dir, 1, 3).unwrap();
         assert!(RunLock::shard(dir, 1, 3).is_err(), "the same shard twice");
         assert!(RunLock::shard(dir, 0, 2).is_err(), "a shard of another partition");
-        let err = RunLock::acquire(dir).err().expect("no whole run while shards run");
+        let err = RunLock::acquire(dir, Holder::Run).err().expect("no whole run while shards run");
         assert!(err.to_string().contains("in use"), "{err}");
         assert!(!dir.join(WHOLE).exists(), "the refused whole run left no lock");
         drop((first, second));
-        let _whole = RunLock::acquire(dir).unwrap();
+        let _whole = RunLock::acquire(dir, Holder::Run).unwrap();
     }
 
     #[test]

@@ -30,7 +30,7 @@ pub fn merge(dir: &Path) -> Result<Merged, String> {
             Plan::path(dir).display()
         )
     })?;
-    let _lock = files::RunLock::acquire(dir).map_err(|e| e.to_string())?;
+    let _lock = files::RunLock::acquire(dir, files::Holder::Collect).map_err(|e| e.to_string())?;
     let outcomes: Vec<CaseOutcome> = plan.cases.iter().map(|p| on_disk(dir, p)).collect();
     let not_complete = outcomes
         .iter()

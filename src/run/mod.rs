@@ -214,7 +214,7 @@ pub fn run(name: &str, cases: &[Case], opts: &RunOptions) -> std::io::Result<Vec
     let dir = opts.out.join(name);
     std::fs::create_dir_all(&dir)?;
     let Some(shard) = opts.shard else {
-        let _lock = files::RunLock::acquire(&dir)?;
+        let _lock = files::RunLock::acquire(&dir, files::Holder::Run)?;
         let outcomes = run_cases(&dir, &cases.iter().collect::<Vec<_>>(), opts)?;
         sweep::write_summaries(&dir, &outcomes)?;
         // The cases in one xarray-ready file: cheap (each case's energies only); a failure
