@@ -158,12 +158,14 @@ fn write_stage(recorders: &mut [&mut dyn Recorder], model: &Model, forces: &[f64
         let positions: Vec<_> = x0.iter().map(|p| p + Vector3::repeat(1e-3 * s)).collect();
         let velocities = vec![Vector3::repeat(s); n];
         let lengths = vec![1.0 + s; m];
+        let viscous = vec![0.0; m];
         let frame = Frame {
             step,
             time: if folding { s / steps as f64 } else { 1e-3 * s },
             positions: &positions,
             velocities: (!folding).then_some(velocities.as_slice()),
             forces,
+            viscous_forces: (!folding).then_some(&viscous[..]),
             lengths: &lengths,
             rest_lengths: None,
             energy: Energy {

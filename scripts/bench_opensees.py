@@ -176,7 +176,8 @@ def read_case(h5path, config):
             "initial_position": m["initial_position"][:],
             "time": f["deployment/time"][:],
             "position": f["deployment/position"][:],
-            "member_force": f["deployment/member_force"][:],
+            # OpenSees' axialForce is the elastic force: tsim's total less its viscous part.
+            "member_force": f["deployment/member_force"][:] - f["deployment/member_force_viscous"][:],
             "member_length": f["deployment/member_length"][:],
         }
     if not np.array_equal(case["x0"], case["position"][0]):

@@ -207,6 +207,10 @@ def read_case(h5path, config):
                 continue
             stages[g] = {k: f[g][k][()] for k in f[g].keys() if isinstance(f[g][k], h5py.Dataset)}  # [()]: scalars too
             stages[g]["attrs"] = dict(f[g].attrs)
+            # OpenSees' axialForce is an element's elastic force (its Rayleigh damping acts
+            # on the nodes): compared with tsim's elastic part, the total less the viscous.
+            if "member_force_viscous" in stages[g]:
+                stages[g]["member_force"] = stages[g]["member_force"] - stages[g]["member_force_viscous"]
         case["stages"] = stages
     case["E"], case["A"], case["rho"], case["tension_only"] = materials_of(
         cfg, case["member_kind"], case["member_group"], case["member"])

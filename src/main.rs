@@ -408,8 +408,9 @@ fn distinct_tables(cases: &[tsim::run::Case]) -> Vec<tsim::config::TablePoints> 
         .collect()
 }
 
-/// `tsim run`: every case of `config` (or this shard's); exit 1 when one failed, 130 when
-/// interrupted.
+/// `tsim run`: every case of `config` (or this shard's); exit 1 when one failed or the run
+/// could not write its directory, 2 when another `tsim run` holds the directory (as
+/// `collect` exits then: nothing was run), 130 when interrupted.
 fn run_command(config: &Path, allow_large: bool, opts: &RunOptions) -> ExitCode {
     let Expanded { name, cases, .. } = match load(config, allow_large) {
         Ok(x) => x,
@@ -437,7 +438,7 @@ fn run_command(config: &Path, allow_large: bool, opts: &RunOptions) -> ExitCode 
         }
         Err(e) => {
             eprintln!("error: {e}");
-            ExitCode::from(1)
+            ExitCode::from(if e.kind() == std::io::ErrorKind::WouldBlock { 2 } else { 1 })
         }
     }
 }

@@ -784,7 +784,8 @@ fn resume_verifies_outputs_and_a_used_directory_is_locked() {
     let before = std::fs::metadata(dir.join("summary.json")).unwrap().modified().unwrap();
     let locked = run(&[]);
     let err = String::from_utf8_lossy(&locked.stderr);
-    assert_eq!(locked.status.code(), Some(1), "{err}");
+    // 2, as collect exits then: nothing was run (it was 1, a failed case's code).
+    assert_eq!(locked.status.code(), Some(2), "{err}");
     assert!(err.contains("in use") && err.contains(&std::process::id().to_string()), "{err}");
     assert_eq!(std::fs::metadata(dir.join("summary.json")).unwrap().modified().unwrap(), before);
     std::fs::remove_file(dir.join(".lock")).unwrap();

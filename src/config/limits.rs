@@ -213,7 +213,9 @@ impl Sizes {
     fn frame(&self, dynamic: bool) -> f64 {
         let (nodes, members) = (self.nodes, self.members);
         let vectors = if dynamic { 6.0 } else { 3.0 };
-        Self::on(self.h5, 8.0 * (2.0 + vectors * nodes + 2.0 * members + 4.0))
+        // Force and length; a transient's force also in its viscous part.
+        let member_columns = if dynamic { 3.0 } else { 2.0 };
+        Self::on(self.h5, 8.0 * (2.0 + vectors * nodes + member_columns * members + 4.0))
             + Self::on(self.mcap, MCAP_PER_FRAME + MCAP_PER_MEMBER * members + self.ids)
     }
 

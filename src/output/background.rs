@@ -268,6 +268,7 @@ pub(super) struct OwnedFrame {
     forces: Vec<f64>,
     lengths: Vec<f64>,
     rest_lengths: Option<Vec<f64>>,
+    viscous_forces: Option<Vec<f64>>,
     energy: Energy,
     applied: Vec<Vector3<f64>>,
     reactions: Vec<f64>,
@@ -285,16 +286,11 @@ impl OwnedFrame {
         self.time = f.time;
         self.energy = f.energy;
         refill(&mut self.positions, f.positions);
-        match f.velocities {
-            Some(v) => refill(self.velocities.get_or_insert_with(Vec::new), v),
-            None => self.velocities = None,
-        }
+        refill_some(&mut self.velocities, f.velocities);
         refill(&mut self.forces, f.forces);
+        refill_some(&mut self.viscous_forces, f.viscous_forces);
         refill(&mut self.lengths, f.lengths);
-        match f.rest_lengths {
-            Some(r) => refill(self.rest_lengths.get_or_insert_with(Vec::new), r),
-            None => self.rest_lengths = None,
-        }
+        refill_some(&mut self.rest_lengths, f.rest_lengths);
         refill(&mut self.applied, f.applied);
         refill(&mut self.reactions, f.reactions);
         self.equilibrium_error = f.equilibrium_error;
@@ -325,7 +321,7 @@ impl OwnedFrame {
     /// Approximate size of the frame's data [bytes].
     fn bytes(&self) -> usize {
         let vectors = self.positions.len() + self.velocities.as_ref().map_or(0, Vec::len) + self.applied.len();
-        let rest = self.rest_lengths.as_ref().map_or(0, Vec::len);
+        let rest = self.rest_lengths.as_ref().map_or(0, Vec::len) + self.viscous_forces.as_ref().map_or(0, Vec::len);
         std::mem::size_of::<Self>() + 24 * vectors + 8 * (self.forces.len() + self.lengths.len() + rest + self.reactions.len())
     }
 
@@ -336,6 +332,7 @@ impl OwnedFrame {
             positions: &self.positions,
             velocities: self.velocities.as_deref(),
             forces: &self.forces,
+            viscous_forces: self.viscous_forces.as_deref(),
             lengths: &self.lengths,
             rest_lengths: self.rest_lengths.as_deref(),
             energy: self.energy,
@@ -354,6 +351,14 @@ impl OwnedFrame {
 fn refill<T: Copy>(v: &mut Vec<T>, src: &[T]) {
     v.clear();
     v.extend_from_slice(src);
+}
+
+/// `refill` of an optional part of a frame: kept allocated while frames have it.
+fn refill_some<T: Copy>(v: &mut Option<Vec<T>>, src: Option<&[T]>) {
+    match src {
+        Some(src) => refill(v.get_or_insert_with(Vec::new), src),
+        None => *v = None,
+    }
 }
 
 #[cfg(test)]

@@ -34,12 +34,31 @@ pub(super) struct Series {
     encoder: ChunkEncoder,
 }
 
-/// The streamed member forces and lengths, the energies and, in an `actuated` stage, the
-/// rest lengths and the actuators' work, in [`Series::push`]'s order.
-fn member_and_energy_columns(g: &Dims, actuated: bool, chunk: usize) -> Result<Vec<Dataset>, Error> {
-    let mut columns = Vec::new();
+/// The streamed member forces (in a `dynamic` stage with their viscous part) and lengths,
+/// the energies and, in an `actuated` stage, the rest lengths and the actuators' work, in
+/// [`Series::push`]'s order.
+fn member_and_energy_columns(g: &Dims, dynamic: bool, actuated: bool, chunk: usize) -> Result<Vec<Dataset>, Error> {
+    let mut columns = vec![g.streamed(
+        "member_force",
+        &["member"],
+        chunk,
+        "N",
+        if dynamic {
+            "member axial force, elastic + viscous (tension > 0)"
+        } else {
+            "member axial force (tension > 0)"
+        },
+    )?];
+    if dynamic {
+        columns.push(g.streamed(
+            "member_force_viscous",
+            &["member"],
+            chunk,
+            "N",
+            "viscous part of member_force: the member's damping force along it (the elastic part is member_force - member_force_viscous)",
+        )?);
+    }
     for (name, units, long_name) in [
-        ("member_force", "N", "member force (tension > 0)"),
         ("member_length", "m", "member length"),
         ("kinetic_energy", "J", "kinetic energy"),
         ("strain_energy", "J", "strain energy"),
@@ -165,7 +184,7 @@ fn mode_columns(g: &mut Dims, modes: usize, chunk: usize) -> Result<[Dataset; 2]
 
 impl Series {
     /// Column order, used by [`Series::push`]: time, [fraction], position, [velocity],
-    /// member_force, member_length, kinetic, strain, damping, external, [rest_length,
+    /// member_force, [member_force_viscous (transient stages)], member_length, kinetic, strain, damping, external, [rest_length,
     /// actuator_work (a stage in `record.actuated`)], applied_load,
     /// reaction, equilibrium_error, [mode_omega2, lowest_mode], min_clearance,
     /// min_clearance_pair; the clearance events in a table of their own. Folding, a static stage, has `fraction` and no
@@ -195,7 +214,7 @@ impl Series {
             columns.push(g.streamed("velocity", &["node", "xyz"], chunk, "m s-1", "node velocity")?);
         }
         let actuated = layout.actuated;
-        columns.extend(member_and_energy_columns(&g, actuated, chunk)?);
+        columns.extend(member_and_energy_columns(&g, !folding, actuated, chunk)?);
         columns.extend(load_columns(&g, chunk)?);
         // CF: makes xarray list `fraction` and the support labels as (non-dimension)
         // coordinates.
@@ -258,6 +277,12 @@ impl Series {
             }
         }
         next().extend_from_slice(f.forces);
+        if !self.folding {
+            let viscous = f
+                .viscous_forces
+                .ok_or_else(|| format!("HDF5: frame {} of a transient stage lacks its viscous member forces", f.step))?;
+            next().extend_from_slice(viscous);
+        }
         next().extend_from_slice(f.lengths);
         let e = f.energy;
         for value in [e.kinetic, e.strain, e.damping, e.external] {

@@ -124,12 +124,14 @@ fn drive_stage(
             points: [Vector3::zeros(); 2],
             radius: 0.05,
         };
+        let viscous: Vec<f64> = forces.iter().map(|f| 1e-3 * s * f).collect();
         rec.frame(&Frame {
             step,
             time,
             positions: &positions,
             velocities,
             forces,
+            viscous_forces: velocities.map(|_| viscous.as_slice()),
             lengths: &lengths,
             rest_lengths: actuated.then_some(rest.as_slice()),
             energy,

@@ -11,5 +11,5 @@ mod viscous;
 pub use actuation::{Actuator, RestSchedule};
 pub use ledger::Energy;
 pub use load::{FreeLoads, GroundMotion, LoadProfile, Loads, NodalLoad, TimeFunction};
-pub use newmark::{Damping, DampingTangent, Integrator, Newmark, NewmarkParams};
+pub use newmark::{AxialForces, Damping, DampingTangent, Integrator, Newmark, NewmarkParams};
 pub use rayleigh::Rayleigh;

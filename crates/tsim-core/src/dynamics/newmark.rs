@@ -167,6 +167,38 @@ impl History {
     }
 }
 
+/// Each member's axial force at a converged step [N], tension positive: `total` is the
+/// elastic N plus `viscous`, the member's damping force along it. The force a member
+/// carries, and the one an engineer reads: a rotating stiff strut gets from Newmark a
+/// spurious axial rate of order Δt², which its elastic force alone shows as a large
+/// Δt-dependent swing and the total does not (issue 30).
+#[derive(Clone, Debug, Default)]
+pub struct AxialForces {
+    /// The node velocities of the step (zero at fixed directions) [m/s].
+    pub velocities: Vec<Vector3<f64>>,
+    /// Elastic + viscous, per member [N].
+    pub total: Vec<f64>,
+    /// The viscous part, per member [N].
+    pub viscous: Vec<f64>,
+}
+
+impl AxialForces {
+    /// The forces of `nm`'s last converged step.
+    pub fn update(&mut self, nm: &Newmark) {
+        let asm = &nm.asm;
+        self.velocities.clear();
+        self.velocities.resize(asm.model.node_count(), Vector3::zeros());
+        for (i, &vi) in nm.v.iter().enumerate() {
+            let (n, a) = asm.dofs.owner(i);
+            self.velocities[n][a] = vi;
+        }
+        self.viscous.resize(asm.states.len(), 0.0);
+        nm.member_viscous_forces(&self.velocities, &mut self.viscous);
+        self.total.clear();
+        self.total.extend(asm.states.iter().zip(&self.viscous).map(|(s, d)| s.force + d));
+    }
+}
+
 impl<'a> Newmark<'a> {
     /// Starts at the state of `asm` with velocities `v` under external force `f0`, with
     /// the consistent initial acceleration a0 = M⁻¹(f0 − C v0 − p(x0)).
@@ -298,6 +330,13 @@ impl<'a> Newmark<'a> {
     pub fn member_damping_force(&self, members: &[usize], velocities: &[Vector3<f64>], out: &mut [f64]) {
         out.fill(0.0);
         self.viscous.member_force(&self.asm, members, self.rest_rate(), velocities, out);
+    }
+
+    /// The members' viscous axial forces at the last converged step into `out` [N], at node
+    /// `velocities` (the step's `v`, zero at fixed directions), as the step's equation had
+    /// them ([`member_axial_damping`](crate::tsm::member_axial_damping)).
+    pub fn member_viscous_forces(&self, velocities: &[Vector3<f64>], out: &mut [f64]) {
+        self.viscous.member_axial(&self.asm, self.rest_rate(), velocities, out);
     }
 
     /// |KE + SE + D − W − W_a − E0| (W_a: the actuators' work, E0: KE + SE at the start):

@@ -4,8 +4,8 @@
 use super::{DampingTangent, Rayleigh};
 use crate::solve::{TangentSink, REUSE_CONTRACTION};
 use crate::tsm::{
-    assemble_tangents, block_product, damping_moduli, member_damping_all, scaled_blocks, taut_members, Assembly, DampingModulus, EndSlots,
-    MemberDamping, MemberState, ObjectiveDamping,
+    assemble_tangents, block_product, damping_moduli, member_axial_damping, member_damping_all, scaled_blocks, taut_members, Assembly,
+    DampingModulus, EndSlots, MemberDamping, MemberState, ObjectiveDamping,
 };
 use nalgebra::{Matrix3, Vector3};
 
@@ -177,15 +177,23 @@ impl Viscous {
     /// The β part of the damping force on all 3n node directions into `out`, summed over
     /// `members` only, at node velocities `velocities` ([`member_damping_all`]).
     pub(super) fn member_force(&self, asm: &Assembly, members: &[usize], rest_rate: &[f64], velocities: &[Vector3<f64>], out: &mut [f64]) {
-        let damping = match &self.term {
+        member_damping_all(asm.model, members, &asm.states, self.member_damping(rest_rate), velocities, out);
+    }
+
+    /// Each member's axial damping force [N] at node `velocities` ([`member_axial_damping`]).
+    pub(super) fn member_axial(&self, asm: &Assembly, rest_rate: &[f64], velocities: &[Vector3<f64>], out: &mut [f64]) {
+        member_axial_damping(asm.model, &asm.states, self.member_damping(rest_rate), velocities, out);
+    }
+
+    fn member_damping<'s>(&'s self, rest_rate: &'s [f64]) -> MemberDamping<'s> {
+        match &self.term {
             StiffnessTerm::Objective(o) => MemberDamping::Objective {
                 moduli: &o.moduli,
                 beta: self.rayleigh.beta,
                 rest_rate,
             },
             StiffnessTerm::Tangent(t) => MemberDamping::Blocks(&t.blocks),
-        };
-        member_damping_all(asm.model, members, &asm.states, damping, velocities, out);
+        }
     }
 }
 

@@ -176,8 +176,12 @@ pub struct Frame<'a> {
     pub positions: &'a [Vector3<f64>],
     /// Node velocities [m/s]; `None` for static stages.
     pub velocities: Option<&'a [Vector3<f64>]>,
-    /// Member axial forces N [N], tension positive.
+    /// Member axial forces [N], tension positive: in a transient stage the elastic force N
+    /// plus the viscous one (the member's damping force along it), which the member carries.
     pub forces: &'a [f64],
+    /// The viscous part of `forces` [N] in a transient stage (its elastic part is
+    /// `forces − viscous_forces`); `None` in static stages, where there is none.
+    pub viscous_forces: Option<&'a [f64]>,
     /// Member lengths [m].
     pub lengths: &'a [f64],
     /// The members' rest lengths at this step [m], in a stage that changes them in time

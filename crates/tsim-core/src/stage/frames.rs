@@ -1,4 +1,4 @@
-use crate::dynamics::{Energy, Newmark};
+use crate::dynamics::{AxialForces, Energy, Newmark};
 use crate::model::clearance::Tracker;
 use crate::model::{Model, AXES};
 use crate::record::{Constraints, Frame, FrameClearance, FrameModes, RecordResult, Recorder, Stage};
@@ -32,8 +32,8 @@ pub struct FrameBuilder {
     constraints: Constraints,
     /// Lumped mass of every node [kg] (zero for a massless structure).
     masses: Vec<f64>,
-    velocities: Vec<Vector3<f64>>,
-    forces: Vec<f64>,
+    /// The members' axial forces (elastic + viscous) and the node velocities.
+    axial: AxialForces,
     lengths: Vec<f64>,
     reactions: Vec<f64>,
     /// The members' β damping force on all 3n directions (zero in static stages), summed
@@ -92,8 +92,7 @@ impl FrameBuilder {
             reactions: vec![0.0; constraints.len()],
             constraints,
             masses: (0..nodes).map(|n| structure.masses.get(n).copied().unwrap_or(0.0)).collect(),
-            velocities: vec![Vector3::zeros(); nodes],
-            forces: Vec::new(),
+            axial: AxialForces::default(),
             lengths: Vec::new(),
             damping: vec![0.0; 3 * nodes],
             check: EquilibriumCheck::default(),
@@ -158,13 +157,16 @@ impl FrameBuilder {
             support_acceleration,
         }) = motion
         {
+            self.axial.update(nm);
             for (i, &vi) in nm.v.iter().enumerate() {
-                let (n, a) = asm.dofs.owner(i);
-                self.velocities[n][a] = vi;
+                let (_, a) = asm.dofs.owner(i);
                 balance[a] -= nm.mass[i] * (nm.a[i] + nm.rayleigh().alpha * vi);
             }
-            nm.member_damping_force(&self.constrained_members, &self.velocities, &mut self.damping);
+            nm.member_damping_force(&self.constrained_members, &self.axial.velocities, &mut self.damping);
             base = support_acceleration;
+        } else {
+            self.axial.total.clear();
+            self.axial.total.extend(asm.states.iter().map(|s| s.force));
         }
         let mut reaction_sum = Vector3::zeros();
         for (r, c) in self.reactions.iter_mut().zip(&self.constraints.0) {
@@ -175,13 +177,11 @@ impl FrameBuilder {
         }
         balance += reaction_sum;
         let error = balance.norm();
-        let max_force = asm.states.iter().fold(0.0_f64, |m, s| m.max(s.force.abs()));
+        let max_force = self.axial.total.iter().fold(0.0_f64, |m, n| m.max(n.abs()));
         let scale = applied_sum.max(reaction_sum.norm()).max(max_force);
         let relative = if scale > 0.0 { error / scale } else { error };
         self.check.max_error = self.check.max_error.max(error);
         self.check.max_relative = self.check.max_relative.max(relative);
-        self.forces.clear();
-        self.forces.extend(asm.states.iter().map(|s| s.force));
         self.lengths.clear();
         self.lengths.extend(asm.states.iter().map(|s| s.length));
         // The state was checked before it was committed; what is derived from it here
@@ -194,8 +194,9 @@ impl FrameBuilder {
             step,
             time,
             positions: &asm.x,
-            velocities: motion.map(|_| self.velocities.as_slice()),
-            forces: &self.forces,
+            velocities: motion.map(|_| self.axial.velocities.as_slice()),
+            forces: &self.axial.total,
+            viscous_forces: motion.map(|_| self.axial.viscous.as_slice()),
             lengths: &self.lengths,
             rest_lengths: (self.actuated || motion.is_some_and(|m| m.newmark.is_actuated())).then_some(&asm.rest[..]),
             energy,

@@ -8,7 +8,7 @@ use super::sequence::{Reached, Run, SequenceStage, StageSummary};
 use super::EquilibriumSummary;
 use super::{record_error, solve_error, Analysis, Settings};
 use crate::dynamics::{
-    Actuator, Damping, DampingTangent, Energy, FreeLoads, Integrator, Loads, Newmark, NewmarkParams, Rayleigh, RestSchedule,
+    Actuator, AxialForces, Damping, DampingTangent, Energy, FreeLoads, Integrator, Loads, Newmark, NewmarkParams, Rayleigh, RestSchedule,
 };
 use crate::error::{Error, Result};
 use crate::model::{shape_error, MemberKind, Model};
@@ -213,10 +213,21 @@ impl TransientSummary {
         self.cut_steps += usize::from(cut);
     }
 
-    /// Takes in one converged step at stage time `time`; `load_end` is when the loads
-    /// stop changing; `loaded` whether some load stays on after that (then the mechanical
-    /// energy counted is KE + SE − W, which a constant load leaves conserved).
-    fn add_step(&mut self, nm: &Newmark, time: f64, (load_end, loaded): (f64, bool), dt: f64, mechanical: &mut f64) {
+    /// Takes in one converged step at stage time `time`, its members' axial forces
+    /// (elastic + viscous) found into `axial`; `load_end` is when the loads stop changing;
+    /// `loaded` whether some load stays on after that (then the mechanical energy counted
+    /// is KE + SE − W, which a constant load leaves conserved).
+    fn add_step(
+        &mut self,
+        nm: &Newmark,
+        axial: &mut AxialForces,
+        time: f64,
+        (load_end, loaded): (f64, bool),
+        dt: f64,
+        mechanical: &mut f64,
+    ) {
+        axial.update(nm);
+        let forces = &axial.total;
         let e = nm.energy();
         self.max_kinetic = self.max_kinetic.max(e.kinetic);
         self.max_energy = self.max_energy.max(e.kinetic.max(e.strain));
@@ -227,12 +238,12 @@ impl TransientSummary {
         }
         *mechanical = now;
         let asm = &nm.asm;
-        for ((mem, st), l0) in asm.model.members.iter().zip(&asm.states).zip(&asm.rest) {
-            self.max_tension = self.max_tension.max(st.force);
-            self.max_compression = self.max_compression.max(-st.force);
+        for (((mem, st), l0), &force) in asm.model.members.iter().zip(&asm.states).zip(&asm.rest).zip(forces) {
+            self.max_tension = self.max_tension.max(force);
+            self.max_compression = self.max_compression.max(-force);
             match mem.kind {
                 MemberKind::Cable => self.max_cable_stretch = self.max_cable_stretch.max(st.length / l0),
-                MemberKind::Strut => self.max_strut_compression = self.max_strut_compression.max(-st.force),
+                MemberKind::Strut => self.max_strut_compression = self.max_strut_compression.max(-force),
             }
         }
     }
@@ -320,7 +331,7 @@ impl Transient {
         record(&mut frames, &nm, 0, 0.0, recorder)?;
         let mut settle = Settle { reference, since: None };
         settle.track(&nm.asm.x, 0.0);
-        let mut mechanical = mechanical_energy(&nm.energy(), load_end.1);
+        let (mut mechanical, mut axial) = (mechanical_energy(&nm.energy(), load_end.1), AxialForces::default());
         for step in 1..=steps {
             let time = step as f64 * dt;
             let failed_before = nm.retried.attempts;
@@ -338,7 +349,7 @@ impl Transient {
                 });
             }
             summary.add_effort(&report, nm.retried.attempts > failed_before);
-            summary.add_step(&nm, time, load_end, dt, &mut mechanical);
+            summary.add_step(&nm, &mut axial, time, load_end, dt, &mut mechanical);
             settle.track(&nm.asm.x, time);
             if step % settings.every == 0 || step == steps {
                 record(&mut frames, &nm, step, load_time, recorder)?;

@@ -262,17 +262,34 @@ pub fn member_damping_all(
 ) {
     for &e in members {
         let [a, b] = model.members[e].nodes;
-        let w = velocities[b] - velocities[a];
-        let f = match damping {
-            MemberDamping::Objective { moduli, beta, rest_rate } => {
-                let s = &states[e];
-                s.dir * (beta * moduli[e].stiffness * elastic_rate(s, &w, rest_rate, e))
-            }
-            MemberDamping::Blocks(blocks) => blocks[e] * w,
-        };
+        let f = member_damping(model, e, states, damping, velocities);
         for ax in 0..3 {
             out[3 * a + ax] -= f[ax];
             out[3 * b + ax] += f[ax];
         }
+    }
+}
+
+/// Each member's axial damping force [N], tension positive (the force a member's damping
+/// adds to its elastic N), at node `velocities`: β k r for [`ObjectiveDamping`], the
+/// projection on the member of β k w for the βK variants. A βK variant's block also has a
+/// transverse part (β N/l times the relative velocity across the member): a force on the
+/// nodes, in their balance and the reactions, but no force of the member's.
+pub fn member_axial_damping(model: &Model, states: &[MemberState], damping: MemberDamping, velocities: &[Vector3<f64>], out: &mut [f64]) {
+    for (e, f) in out.iter_mut().enumerate() {
+        *f = states[e].dir.dot(&member_damping(model, e, states, damping, velocities));
+    }
+}
+
+/// Member `e`'s damping force on its second end [N] at node `velocities`.
+fn member_damping(model: &Model, e: usize, states: &[MemberState], damping: MemberDamping, velocities: &[Vector3<f64>]) -> Vector3<f64> {
+    let [a, b] = model.members[e].nodes;
+    let w = velocities[b] - velocities[a];
+    match damping {
+        MemberDamping::Objective { moduli, beta, rest_rate } => {
+            let s = &states[e];
+            s.dir * (beta * moduli[e].stiffness * elastic_rate(s, &w, rest_rate, e))
+        }
+        MemberDamping::Blocks(blocks) => blocks[e] * w,
     }
 }

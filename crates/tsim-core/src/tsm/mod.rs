@@ -14,8 +14,8 @@ mod dofs;
 
 pub use assembly::Assembly;
 pub use damping::{
-    block_product, damping_moduli, member_damping_all, scaled_blocks, taut_members, DampingModulus, EndSlots, MemberDamping,
-    ObjectiveDamping,
+    block_product, damping_moduli, member_axial_damping, member_damping_all, scaled_blocks, taut_members, DampingModulus, EndSlots,
+    MemberDamping, ObjectiveDamping,
 };
 pub use dofs::DofMap;
 

@@ -1,0 +1,156 @@
+//! Recorded member forces are the forces the members carry (issue 30): in a transient stage
+//! `member_force` is the elastic force plus the viscous one, which is what balances the
+//! reactions and what converges as Δt halves. The elastic part alone does neither: a
+//! rotating stiff strut gets from Newmark a spurious axial rate of order Δt², which
+//! β EA/l0 (≈ 5e5 N s/m on the paper's struts) turns into a large elastic swing that its
+//! damping force cancels.
+
+use nalgebra::Vector3;
+use tsim::config::{parse_case, CaseConfig};
+use tsim::pipeline::run_case;
+use tsim::record::{Constraints, Frame, ModelRecord, RecordResult, Recorder, Stage};
+
+/// The deployment's frames: time, positions, total and viscous member forces, applied
+/// loads, reactions; with the stage's constraints and the member end nodes.
+#[derive(Default)]
+struct Deployment {
+    recording: bool,
+    ends: Vec<[usize; 2]>,
+    constraints: Option<Constraints>,
+    frames: Vec<Logged>,
+}
+
+struct Logged {
+    time: f64,
+    positions: Vec<Vector3<f64>>,
+    forces: Vec<f64>,
+    viscous: Vec<f64>,
+    applied: Vec<Vector3<f64>>,
+    reactions: Vec<f64>,
+}
+
+impl Recorder for Deployment {
+    fn model(&mut self, record: &ModelRecord) -> RecordResult {
+        self.ends = record.model.members.iter().map(|m| m.nodes).collect();
+        Ok(())
+    }
+    fn begin_stage(&mut self, stage: &Stage, constraints: &Constraints) -> RecordResult {
+        self.recording = stage.name() == "deployment";
+        if self.recording {
+            self.constraints = Some(constraints.clone());
+        }
+        Ok(())
+    }
+    fn frame(&mut self, f: &Frame) -> RecordResult {
+        if self.recording {
+            self.frames.push(Logged {
+                time: f.time,
+                positions: f.positions.to_vec(),
+                forces: f.forces.to_vec(),
+                viscous: f.viscous_forces.expect("a transient frame has its viscous forces").to_vec(),
+                applied: f.applied.to_vec(),
+                reactions: f.reactions.to_vec(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// configs/paper.yaml (objective damping) with its deployment at `dt` for `duration`.
+fn paper(dt: f64, duration: f64) -> CaseConfig {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/paper.yaml");
+    let mut cfg = parse_case(&std::fs::read_to_string(path).unwrap(), path).unwrap();
+    cfg.free_vibration = None;
+    let deployment = cfg.deployment.as_mut().unwrap();
+    (deployment.dt, deployment.duration) = (dt, duration);
+    cfg
+}
+
+fn deploy(cfg: &CaseConfig) -> Deployment {
+    let mut log = Deployment::default();
+    run_case(cfg, &mut log).unwrap_or_else(|e| panic!("{e}"));
+    log
+}
+
+/// At every support direction the reaction is what the members' recorded forces put into
+/// the support, less the load applied there: −Σ N e (e from the support's node to the
+/// member's other end) − f. With the elastic force alone recorded (before), this missed
+/// the viscous part, up to the largest viscous force itself; with the total it closes to
+/// round-off. (Objective damping acts along each member, so its viscous force is all of a
+/// member's damping force; the supports do not move, so no inertia enters.)
+#[test]
+fn recorded_member_forces_balance_the_reactions() {
+    let log = deploy(&paper(0.001, 0.3));
+    let constraints = log.constraints.as_ref().unwrap();
+    let (mut worst, mut largest_viscous, mut largest) = (0.0_f64, 0.0_f64, 0.0_f64);
+    for f in &log.frames {
+        largest = f.forces.iter().fold(largest, |m, n| m.max(n.abs()));
+        largest_viscous = f.viscous.iter().fold(largest_viscous, |m, n| m.max(n.abs()));
+        for (c, r) in constraints.0.iter().zip(&f.reactions) {
+            let mut from_members = 0.0;
+            for (m, &[a, b]) in log.ends.iter().enumerate() {
+                let other = match c.node {
+                    n if n == a => b,
+                    n if n == b => a,
+                    _ => continue,
+                };
+                let e = (f.positions[other] - f.positions[c.node]).normalize();
+                from_members -= f.forces[m] * e[c.axis];
+            }
+            worst = worst.max((r - (from_members - f.applied[c.node][c.axis])).abs());
+        }
+    }
+    // The launch makes the viscous forces large enough to matter.
+    assert!(largest_viscous > 1.0, "largest viscous force {largest_viscous} N");
+    // Round-off of sums of forces up to `largest` (~1e3 N) over a few members: 1e-9 of it.
+    assert!(
+        worst <= 1e-9 * largest,
+        "reactions off the members' forces by {worst:.3e} N (largest force {largest:.1} N)"
+    );
+}
+
+/// The paper deployment's strut forces at t = 0.13 s (the elastic force of one strut swung
+/// from −7426 to −710 N over Δt = 2 … 0.125 ms) and the largest strut compression over the
+/// launch converge at second order: each halving of Δt (1, 0.5, 0.25 ms) divides the
+/// change by 4 (within ±0.5: measured 3.98 and 4.00 at t = 0.13 s, 3.82 and 4.00 for the
+/// largest compression). The elastic part converges at second order too, but with an error
+/// constant some 10⁴ times larger: at the shipped 0.5 ms it is 47 % off its limit, the total
+/// 6e-5 and the largest compression 2e-5 (against the Richardson extrapolation of the
+/// three). That is why `member_force` records the total.
+#[test]
+fn total_strut_forces_converge_at_second_order_in_dt() {
+    let at = 0.13;
+    let (mut total, mut elastic, mut largest) = (Vec::new(), Vec::new(), Vec::new());
+    for dt in [0.001, 0.0005, 0.00025] {
+        let log = deploy(&paper(dt, 0.3));
+        let f = log
+            .frames
+            .iter()
+            .min_by(|a, b| (a.time - at).abs().total_cmp(&(b.time - at).abs()))
+            .unwrap();
+        assert!((f.time - at).abs() < 1e-9, "a frame at t = {at}");
+        // The most compressed member at that instant (a strut).
+        let m = (0..f.forces.len()).min_by(|&a, &b| f.forces[a].total_cmp(&f.forces[b])).unwrap();
+        total.push(f.forces[m]);
+        elastic.push(f.forces[m] - f.viscous[m]);
+        largest.push(log.frames.iter().flat_map(|f| f.forces.iter()).fold(0.0_f64, |c, &n| c.max(-n)));
+    }
+    let ratio = |v: &[f64]| (v[0] - v[1]) / (v[1] - v[2]);
+    // The error of the 0.5 ms value against the second-order extrapolation of the three.
+    let error_at_half_ms = |v: &[f64]| {
+        let limit = v[2] + (v[2] - v[1]) / 3.0;
+        ((v[1] - limit) / limit).abs()
+    };
+    for (what, v) in [("strut force at 0.13 s", &total), ("largest strut compression", &largest)] {
+        let r = ratio(v);
+        assert!((3.5..=4.5).contains(&r), "{what}: {v:?}, ratio {r:.3}");
+        // 1e-3: the issue's bound of 1 % with a margin of 10; measured 6e-5 and 2e-5.
+        assert!(
+            error_at_half_ms(v) < 1e-3,
+            "{what}: {v:?}, {:.2e} off at 0.5 ms",
+            error_at_half_ms(v)
+        );
+    }
+    // Far from converged at the shipped step: measured 47 %.
+    assert!(error_at_half_ms(&elastic) > 0.1, "{elastic:?}");
+}
