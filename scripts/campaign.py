@@ -380,7 +380,10 @@ def phase_byte_flips(work, cfg):
 def outside_writes(work, marker):
     """Files changed since `marker` anywhere on this file system but the campaign's
     directory and the build's."""
-    skip = [str(work), "/proc", "/sys", "/dev", "/run", str(ROOT / "target"), "/tmp/target", "/root/.cargo", "/var/log", "/var/cache", "/var/lib"]
+    # Besides the system's own logs, caches and state: the state files of the test Slurm
+    # cluster scripts/test starts (its slurmctld writes them every few minutes).
+    skip = [str(work), "/proc", "/sys", "/dev", "/run", str(ROOT / "target"), "/tmp/target", "/root/.cargo", "/var/log", "/var/cache",
+            "/var/lib", "/var/spool/tsim-slurm"]
     cmd = ["find", "/", "-xdev"]
     for s in skip:
         cmd += ["-path", s, "-prune", "-o"]
