@@ -367,3 +367,39 @@ fn form_finding_converges_without_tuning_for_table_1_and_per_group_c() {
         );
     }
 }
+
+/// A string between two pins on the x axis, its inner nodes free only in y: the rotation
+/// about x moves no node, so it is no free motion of the structure, and the model is valid
+/// (it was refused for a free "rotation about x", issue 30). With the inner nodes free in
+/// y and z and one pin released to slide along y, the string swings about the other pin:
+/// a motion that moves nodes, free, and named (rotation about z).
+#[test]
+fn a_motion_that_moves_no_node_is_not_a_free_rigid_body_motion() {
+    let node = |id: &str, x: f64, support: [bool; 3]| tsim::model::Node {
+        id: id.into(),
+        xyz: Vector3::new(x, 0.0, 0.0),
+        support,
+    };
+    let member = |k: usize| tsim::model::Member {
+        id: format!("s{k}"),
+        nodes: [k, k + 1],
+        kind: tsim::model::MemberKind::Cable,
+        groups: vec![],
+    };
+    let string = |inner: [bool; 3], end: [bool; 3]| Model {
+        nodes: vec![
+            node("a", 0.0, [true; 3]),
+            node("m1", 1.0, inner),
+            node("m2", 2.0, inner),
+            node("b", 3.0, end),
+        ],
+        members: (0..3).map(member).collect(),
+        node_groups: Default::default(),
+    };
+    assert_eq!(string([true, false, true], [true; 3]).validate(), Ok(()));
+    let err = string([true, false, false], [true, false, true]).validate().unwrap_err();
+    assert!(
+        matches!(err, ModelError::RigidBodyFree { ref motion } if motion == "rotation about z"),
+        "{err}"
+    );
+}

@@ -1,7 +1,7 @@
 //! Checks run when a model is loaded: every error names the offending item and the fix.
 
 use super::Model;
-use nalgebra::{Matrix6, Vector3};
+use nalgebra::{Matrix6, Vector3, Vector6};
 use std::collections::HashMap;
 
 /// An invalid model, or a node, member or group named for it that it does not have. Every
@@ -154,39 +154,51 @@ impl Model {
         self.check_rigid_body_supports()
     }
 
-    /// The six rigid-body motions (translations, rotations about the centroid) must each
-    /// move at least one supported direction. Works on the Gram matrix of the motions
-    /// restricted to supported DOFs; a near-zero eigenvalue is a free motion, named by its
-    /// largest component.
+    /// Every rigid-body motion (translations, rotations about the centroid) that moves a
+    /// node must move at least one supported direction. A motion that moves no node (the
+    /// rotation about the line of collinear nodes) is no motion of the structure and is not
+    /// asked for: a string between two pins, its nodes on the x axis, was refused for a free
+    /// rotation about x (issue 30). Works on the Gram matrices of the motions over every
+    /// direction (A) and over the supported ones (S): a free motion is a near-zero
+    /// eigenvalue of S restricted to A's range (the motions that move some node, in an
+    /// orthonormal basis), named by its largest component.
     fn check_rigid_body_supports(&self) -> Result<(), ModelError> {
         let n = self.nodes.len().max(1) as f64;
         let centroid = self.nodes.iter().fold(Vector3::zeros(), |s, nd| s + nd.xyz) / n;
         let scale = self.size().max(1e-12);
-        let mut gram = Matrix6::<f64>::zeros();
+        let (mut all, mut supported) = (Matrix6::<f64>::zeros(), Matrix6::<f64>::zeros());
         for nd in &self.nodes {
             let r = (nd.xyz - centroid) / scale;
             for (d, &fixed) in nd.support.iter().enumerate() {
-                if !fixed {
-                    continue;
-                }
                 // Component d of each rigid motion at this node: translations e_k, rotations ω_k × r.
-                let mut row = [0.0; 6];
+                let mut row = Vector6::zeros();
                 row[d] = 1.0;
                 for k in 0..3 {
                     let mut w = Vector3::zeros();
                     w[k] = 1.0;
                     row[3 + k] = w.cross(&r)[d];
                 }
-                for i in 0..6 {
-                    for j in 0..6 {
-                        gram[(i, j)] += row[i] * row[j];
-                    }
+                let outer = row * row.transpose();
+                all += outer;
+                if fixed {
+                    supported += outer;
                 }
             }
         }
-        let eig = gram.symmetric_eigen();
-        // Rotation columns are scaled by r/size ≤ 1, so a supported motion has an
-        // eigenvalue of order (r/size)², far above 1e-10 for any sensible geometry.
+        // The motions that move some node: A's range. Rotation columns are scaled by
+        // r/size ≤ 1, so a motion that moves a node has an eigenvalue of order (r/size)²,
+        // far above 1e-10 for any sensible geometry; one that moves none, zero.
+        let moving = all.symmetric_eigen();
+        let basis: Vec<Vector6<f64>> = (0..6)
+            .filter(|&k| moving.eigenvalues[k] > 1e-10)
+            .map(|k| moving.eigenvectors.column(k).into_owned())
+            .collect();
+        let m = basis.len();
+        if m == 0 {
+            return Ok(()); // no nodes: nothing to move
+        }
+        let projected = nalgebra::DMatrix::from_fn(m, m, |a, b| basis[a].dot(&(supported * basis[b])));
+        let eig = projected.symmetric_eigen();
         let names = [
             "translation along x",
             "translation along y",
@@ -195,10 +207,13 @@ impl Model {
             "rotation about y",
             "rotation about z",
         ];
-        let free: Vec<&str> = (0..6)
+        // As for A: a supported motion has an eigenvalue of order (r/size)² over its supported
+        // directions, far above 1e-10 for any sensible geometry; a free one, zero.
+        let free: Vec<&str> = (0..m)
             .filter(|&k| eig.eigenvalues[k] < 1e-10)
             .map(|k| {
-                let v = eig.eigenvectors.column(k);
+                let w = eig.eigenvectors.column(k);
+                let v: Vector6<f64> = (0..m).map(|a| basis[a] * w[a]).sum();
                 let i = (0..6).max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs())).unwrap_or(0);
                 names[i]
             })
