@@ -1274,3 +1274,17 @@ fn a_bad_grid_is_refused_at_its_lines() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("`model`: give one of `tower`, `grid`"), "{err}");
 }
+
+/// An alias bomb (10⁹ values if expanded) is refused by the YAML parser's node budget at
+/// the line that breaches it, quickly, not read until memory runs out.
+#[test]
+fn an_alias_bomb_is_refused_at_its_line() {
+    let bomb = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/corpus/alias_bomb.yaml");
+    let out = tsim(&["check", bomb]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(&format!("{bomb}:30:")) && err.contains("too large or too complex"),
+        "{err}"
+    );
+}

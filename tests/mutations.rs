@@ -2,7 +2,8 @@
 //! tests/fixtures/ and the reproducers in tests/corpus/) are mutated deterministically —
 //! numbers replaced by edge values, lines dropped, doubled or cut, keys swapped, stray
 //! punctuation, paths and names (a table `file:`, a `name:`, a `label:`) replaced by
-//! hostile ones — and each mutant goes through sweep expansion and validation, which
+//! hostile ones, anchors and aliases between values (tests/corpus/alias_bomb.yaml seeds
+//! an alias bomb) — and each mutant goes through sweep expansion and validation, which
 //! builds every case's model. No mutant may panic or hang (a table at /dev/zero), every
 //! rejection must say where: a line (`file:N:`, a parse error's `file:N:M:`), and every
 //! case an accepted one makes is one plain directory name. A bounded run here (3000 mutants, a few
@@ -82,7 +83,7 @@ fn mutate(text: &str, rng: &mut Rng) -> String {
         return text.to_string();
     }
     let i = rng.below(lines.len());
-    match rng.below(7) {
+    match rng.below(8) {
         0 => {
             // A number (or any scalar after `: `) replaced by an edge value.
             let tokens: Vec<(usize, usize)> = number_spans(&lines[i]);
@@ -113,6 +114,18 @@ fn mutate(text: &str, rng: &mut Rng) -> String {
                 lines[i].replace_range(start..end, HOSTILE[rng.below(HOSTILE.len())]);
             }
         }
+        6 => {
+            // An anchor on one value and an alias to it in place of a later value (the
+            // alias may stand for a value of another type, or precede its anchor when the
+            // later line is the one anchored).
+            let j = rng.below(lines.len());
+            if let (Some((a, b)), Some((c, d))) = (value_span(&lines[i]), value_span(&lines[j])) {
+                if i != j {
+                    lines[j].replace_range(c..d, "*mutant");
+                    lines[i].insert_str(a.min(b), "&mutant ");
+                }
+            }
+        }
         _ => {
             // A line of another place in the file moved here (keys in the wrong section).
             let j = rng.below(lines.len());
@@ -120,6 +133,14 @@ fn mutate(text: &str, rng: &mut Rng) -> String {
         }
     }
     lines.join("\n") + "\n"
+}
+
+/// The byte span of the value after a line's first `: ` (to the next `,` or `}`, or the
+/// line's end), if it has one.
+fn value_span(line: &str) -> Option<(usize, usize)> {
+    let start = line.find(": ")? + 2;
+    let end = line[start..].find([',', '}']).map_or(line.len(), |e| start + e);
+    (start < end).then_some((start, end))
 }
 
 fn floor_char(s: &str, mut at: usize) -> usize {
