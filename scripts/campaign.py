@@ -17,6 +17,7 @@ import argparse
 import json
 import os
 import random
+import re
 import shutil
 import signal
 import subprocess
@@ -180,10 +181,15 @@ def phase_check(work, mutants):
     return [p for p in files if p.stem.endswith("-ok")]
 
 
+def seed_of(mutant):
+    """The seed config's stem of a mutant `m<k>-<seed>-<ok|no>.yaml`."""
+    return mutant.stem.split("-", 1)[1].rsplit("-", 1)[0]
+
+
 def phase_runs(work, accepted, count):
     """Short runs of accepted mutants whose seed runs within a few seconds."""
     quick = set()
-    for seed in sorted({p.stem.split("-", 1)[1].rsplit("-", 1)[0] for p in accepted}):
+    for seed in sorted({seed_of(p) for p in accepted}):
         for sub in ["configs", "configs/examples", "tests/fixtures", "tests/corpus"]:
             s = ROOT / sub / f"{seed}.yaml"
             if s.exists():
@@ -191,7 +197,7 @@ def phase_runs(work, accepted, count):
                 code, _ = tsim(["run", str(s), "--out", str(work / "out-seeds"), "--quiet", "--jobs", "1"], cwd=work, timeout=8)
                 if code == 0 and time.time() - t < 5:
                     quick.add(seed)
-    pool = [p for p in accepted if p.stem.split("-", 1)[1].rsplit("-", 1)[0] in quick]
+    pool = [p for p in accepted if seed_of(p) in quick]
     random.Random(29).shuffle(pool)
     for k, path in enumerate(pool[:count]):
         out = work / "out-runs" / f"r{k:04d}"
@@ -327,8 +333,6 @@ def phase_disk_full(work):
 
 def reran(err):
     """The cases a run computed, from its last line ("… (C computed, R reused) …")."""
-    import re
-
     m = re.search(r"\((\d+) computed, (\d+) reused\)", err or "")
     return int(m.group(1)) if m else -1
 
