@@ -104,8 +104,9 @@ pub enum ModelError {
     /// A member selection that names neither member ids nor member groups.
     #[error("names no member: give `members` (member ids) or `groups` (member groups)")]
     EmptyMemberSet,
-    /// The supports leave a rigid-body motion of the whole model unrestrained.
-    #[error("the supports leave rigid-body motion free ({motion}); support more directions, e.g. fix x and y of one base node and one more in-plane direction of another")]
+    /// The supports leave a rigid-body motion of the whole model unrestrained (named where a
+    /// static stage fails on it).
+    #[error("the supports leave rigid-body motion free ({motion}), and a static solve has an equilibrium only where the load holds that motion (eigen and transient stages run without supports); support more directions, e.g. fix x and y of one base node and one more in-plane direction of another")]
     RigidBodyFree {
         /// The free motions, e.g. `translation along x, rotation about z`.
         motion: String,
@@ -151,54 +152,40 @@ impl Model {
                 node: self.nodes[i].id.clone(),
             });
         }
-        self.check_rigid_body_supports()
+        Ok(())
     }
 
     /// Every rigid-body motion (translations, rotations about the centroid) that moves a
-    /// node must move at least one supported direction. A motion that moves no node (the
-    /// rotation about the line of collinear nodes) is no motion of the structure and is not
-    /// asked for: a string between two pins, its nodes on the x axis, was refused for a free
-    /// rotation about x (issue 30). Works on the Gram matrices of the motions over every
-    /// direction (A) and over the supported ones (S): a free motion is a near-zero
-    /// eigenvalue of S restricted to A's range (the motions that move some node, in an
-    /// orthonormal basis), named by its largest component.
-    fn check_rigid_body_supports(&self) -> Result<(), ModelError> {
-        let n = self.nodes.len().max(1) as f64;
-        let centroid = self.nodes.iter().fold(Vector3::zeros(), |s, nd| s + nd.xyz) / n;
-        let scale = self.size().max(1e-12);
-        let (mut all, mut supported) = (Matrix6::<f64>::zeros(), Matrix6::<f64>::zeros());
-        for nd in &self.nodes {
-            let r = (nd.xyz - centroid) / scale;
-            for (d, &fixed) in nd.support.iter().enumerate() {
-                // Component d of each rigid motion at this node: translations e_k, rotations ω_k × r.
-                let mut row = Vector6::zeros();
-                row[d] = 1.0;
-                for k in 0..3 {
-                    let mut w = Vector3::zeros();
-                    w[k] = 1.0;
-                    row[3 + k] = w.cross(&r)[d];
-                }
-                let outer = row * row.transpose();
-                all += outer;
-                if fixed {
-                    supported += outer;
-                }
-            }
+    /// node moves at least one supported direction: what a static solve under load needs
+    /// unless the load itself holds the motion (a hanging pendulum). [`Model::validate`]
+    /// does not ask it, so that dynamics of free-floating structures and of mechanisms runs
+    /// (issue 30); a static stage that fails names the free motion with it. A
+    /// motion that moves no node (the rotation about the line of collinear nodes) is no
+    /// motion of the structure and is not asked for.
+    /// `prescribed` (per node, may be empty) holds directions besides the supports, as in
+    /// [`DofMap::new`](crate::tsm::DofMap::new).
+    pub fn require_supports(&self, prescribed: &[[bool; 3]]) -> Result<(), ModelError> {
+        let mut free = self.free_rigid_motions(prescribed);
+        // Two free motions can share their largest component's name: named once.
+        let mut seen = std::collections::HashSet::new();
+        free.retain(|name| seen.insert(*name));
+        if free.is_empty() {
+            Ok(())
+        } else {
+            Err(ModelError::RigidBodyFree { motion: free.join(", ") })
         }
-        // The motions that move some node: A's range. Rotation columns are scaled by
-        // r/size ≤ 1, so a motion that moves a node has an eigenvalue of order (r/size)²,
-        // far above 1e-10 for any sensible geometry; one that moves none, zero.
-        let moving = all.symmetric_eigen();
-        let basis: Vec<Vector6<f64>> = (0..6)
-            .filter(|&k| moving.eigenvalues[k] > 1e-10)
-            .map(|k| moving.eigenvectors.column(k).into_owned())
-            .collect();
-        let m = basis.len();
-        if m == 0 {
-            return Ok(()); // no nodes: nothing to move
-        }
-        let projected = nalgebra::DMatrix::from_fn(m, m, |a, b| basis[a].dot(&(supported * basis[b])));
-        let eig = projected.symmetric_eigen();
+    }
+
+    /// The rigid-body motions that move some node and no supported direction, each named
+    /// by its largest component ("rotation about z"). Works on the Gram matrices of the
+    /// motions over every direction (A) and over the supported ones (S): a free motion is a
+    /// near-zero eigenvalue of S restricted to A's range (the motions that move some node,
+    /// in an orthonormal basis).
+    pub fn free_rigid_motions(&self, prescribed: &[[bool; 3]]) -> Vec<&'static str> {
+        let motions = RigidMotions::new(self, prescribed);
+        let Some(eig) = motions.restricted(&motions.supported) else {
+            return Vec::new(); // no nodes: nothing to move
+        };
         let names = [
             "translation along x",
             "translation along y",
@@ -207,21 +194,139 @@ impl Model {
             "rotation about y",
             "rotation about z",
         ];
-        // As for A: a supported motion has an eigenvalue of order (r/size)² over its supported
+        // A supported motion has an eigenvalue of order (r/size)² over its supported
         // directions, far above 1e-10 for any sensible geometry; a free one, zero.
-        let free: Vec<&str> = (0..m)
-            .filter(|&k| eig.eigenvalues[k] < 1e-10)
+        (0..motions.basis.len())
+            .filter(|&k| eig.eigenvalues[k] < FREE)
             .map(|k| {
                 let w = eig.eigenvectors.column(k);
-                let v: Vector6<f64> = (0..m).map(|a| basis[a] * w[a]).sum();
+                let v: Vector6<f64> = motions.basis.iter().zip(w.iter()).map(|(b, wa)| b * *wa).sum();
                 let i = (0..6).max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs())).unwrap_or(0);
                 names[i]
             })
-            .collect();
-        if free.is_empty() {
-            Ok(())
-        } else {
-            Err(ModelError::RigidBodyFree { motion: free.join(", ") })
+            .collect()
+    }
+
+    /// Directions to hold in a static solve without load (form-finding, a given model's
+    /// equilibrium, the stability check) where the supports leave rigid-body motion free,
+    /// per node (empty when they leave none): a set of free directions that together stop
+    /// every free rigid motion, no more. Self-stress is balanced over the whole structure, so
+    /// holding them changes no equilibrium and their reactions are zero (to round-off; the
+    /// equilibrium's `max_reaction` shows it), while the tangent becomes regular. Chosen
+    /// greedily over the nodes farthest from the centroid first, a direction taken where it
+    /// stops a motion not yet stopped by a clear margin, so the set is well conditioned.
+    pub fn gauge(&self) -> Vec<[bool; 3]> {
+        let motions = RigidMotions::new(self, &[]);
+        let stopped = |s: &Matrix6<f64>, tolerance: f64| {
+            motions
+                .restricted(s)
+                .map_or(0, |e| e.eigenvalues.iter().filter(|&&l| l > tolerance).count())
+        };
+        let mut held = motions.supported;
+        let goal = motions.basis.len();
+        if stopped(&held, FREE) == goal {
+            return Vec::new();
         }
+        let mut order: Vec<usize> = (0..self.nodes.len()).collect();
+        let far = |n: usize| (self.nodes[n].xyz - motions.centroid).norm();
+        order.sort_by(|&a, &b| far(b).total_cmp(&far(a)));
+        let mut gauge = vec![[false; 3]; self.nodes.len()];
+        // A margin of 1e-3 on the (r/size)² scale: a direction at a tenth or more of the
+        // model's size from the axis it stops; the second pass, at the freedom threshold,
+        // only serves a geometry where no direction has that margin.
+        for margin in [1e-3, FREE] {
+            for &n in &order {
+                for (d, (held_here, &supported)) in gauge[n].iter_mut().zip(&self.nodes[n].support).enumerate() {
+                    if supported || *held_here {
+                        continue;
+                    }
+                    let row = motions.row(n, d);
+                    let trial = held + row * row.transpose();
+                    if stopped(&trial, margin) > stopped(&held, margin) {
+                        held = trial;
+                        *held_here = true;
+                    }
+                }
+                if stopped(&held, FREE) == goal {
+                    return gauge;
+                }
+            }
+        }
+        gauge
+    }
+}
+
+/// Below this eigenvalue of the supported directions' Gram matrix (on the (r/size)² scale) a
+/// rigid motion is free.
+const FREE: f64 = 1e-10;
+
+/// The model's rigid-body motions (3 translations, 3 rotations about the centroid, rotation
+/// components scaled by the model's size) as rows per node direction.
+struct RigidMotions {
+    centroid: Vector3<f64>,
+    /// Orthonormal basis of the motions that move some node (the range of their Gram
+    /// matrix over every direction).
+    basis: Vec<Vector6<f64>>,
+    /// Their Gram matrix over the supported directions.
+    supported: Matrix6<f64>,
+    rows: Vec<[Vector6<f64>; 3]>,
+}
+
+impl RigidMotions {
+    /// The motions of `model` with its supports and the `prescribed` directions held.
+    fn new(model: &Model, prescribed: &[[bool; 3]]) -> Self {
+        let n = model.nodes.len().max(1) as f64;
+        let centroid = model.nodes.iter().fold(Vector3::zeros(), |s, nd| s + nd.xyz) / n;
+        let scale = model.size().max(1e-12);
+        let mut rows = Vec::with_capacity(model.nodes.len());
+        let (mut all, mut supported) = (Matrix6::<f64>::zeros(), Matrix6::<f64>::zeros());
+        for (i, nd) in model.nodes.iter().enumerate() {
+            let r = (nd.xyz - centroid) / scale;
+            // Component d of each rigid motion at this node: translations e_k, rotations ω_k × r.
+            let node_rows: [Vector6<f64>; 3] = std::array::from_fn(|d| {
+                let mut row = Vector6::zeros();
+                row[d] = 1.0;
+                for k in 0..3 {
+                    let mut w = Vector3::zeros();
+                    w[k] = 1.0;
+                    row[3 + k] = w.cross(&r)[d];
+                }
+                row
+            });
+            for (d, row) in node_rows.iter().enumerate() {
+                let outer = row * row.transpose();
+                all += outer;
+                if nd.support[d] || prescribed.get(i).is_some_and(|p| p[d]) {
+                    supported += outer;
+                }
+            }
+            rows.push(node_rows);
+        }
+        // The motions that move some node: A's range. Rotation columns are scaled by
+        // r/size ≤ 1, so a motion that moves a node has an eigenvalue of order (r/size)²,
+        // far above 1e-10 for any sensible geometry; one that moves none, zero.
+        let moving = all.symmetric_eigen();
+        let basis = (0..6)
+            .filter(|&k| moving.eigenvalues[k] > FREE)
+            .map(|k| moving.eigenvectors.column(k).into_owned())
+            .collect();
+        RigidMotions {
+            centroid,
+            basis,
+            supported,
+            rows,
+        }
+    }
+
+    /// Node `n`'s direction `d` of every motion.
+    fn row(&self, n: usize, d: usize) -> Vector6<f64> {
+        self.rows[n][d]
+    }
+
+    /// The eigen decomposition of Gram matrix `s` restricted to the moving motions; `None`
+    /// when nothing moves (no nodes).
+    fn restricted(&self, s: &Matrix6<f64>) -> Option<nalgebra::SymmetricEigen<f64, nalgebra::Dyn>> {
+        let m = self.basis.len();
+        (m > 0).then(|| nalgebra::DMatrix::from_fn(m, m, |a, b| self.basis[a].dot(&(s * self.basis[b]))).symmetric_eigen())
     }
 }

@@ -7,7 +7,7 @@ use super::eigen::{modes, ModeSolver};
 use super::frames::{non_finite, FrameBuilder};
 use super::sequence::{Reached, Run, SequenceStage, StageSummary};
 use super::EquilibriumSummary;
-use super::{record_error, solve_error, Analysis, Settings, StaticEquilibrium};
+use super::{name_free_motion, record_error, solve_error, Analysis, Settings, StaticEquilibrium};
 use crate::dynamics::Energy;
 use crate::error::{Error, Result};
 use crate::model::{height, Model};
@@ -232,13 +232,13 @@ fn path_modes(structure: &Structure, asm: &Assembly, step: usize, count: usize) 
     Ok((modes, shape))
 }
 
-/// The free DOFs left when `prescribed` directions are imposed.
-fn free_dofs(model: &Model, prescribed: &Prescribed) -> DofMap {
+/// The directions `prescribed` imposes, per node.
+fn held(model: &Model, prescribed: &Prescribed) -> Vec<[bool; 3]> {
     let mut mask = vec![[false; 3]; model.node_count()];
     for &(n, a, _, _) in prescribed {
         mask[n][a] = true;
     }
-    DofMap::new(model, &mask)
+    mask
 }
 
 impl SequenceStage for Folding {
@@ -255,7 +255,10 @@ impl SequenceStage for Folding {
     }
 
     fn run_from(&self, start: &Reached, run: &Run, recorder: &mut dyn Recorder) -> Result<(Reached, StageSummary)> {
-        let (state, fold) = Analysis::run(self, run.structure, start.state.clone(), run.settings, recorder)?;
+        let model = &run.structure.model;
+        let held = held(model, &self.resolve(&start.state.positions));
+        let (state, fold) =
+            Analysis::run(self, run.structure, start.state.clone(), run.settings, recorder).map_err(name_free_motion(model, &held))?;
         Ok((start.under_same_loads(state), StageSummary::Folding(fold)))
     }
 }
@@ -266,7 +269,7 @@ impl Analysis for Folding {
     fn run(&self, structure: &Structure, state: State, settings: &Settings, recorder: &mut dyn Recorder) -> Result<(State, FoldSummary)> {
         let model = &structure.model;
         let prescribed = self.resolve(&state.positions);
-        let dofs = free_dofs(model, &prescribed);
+        let dofs = DofMap::new(model, &held(model, &prescribed));
         let h0 = height(&state.positions);
         let rest_lengths = state.rest_lengths;
         let rest = rest_lengths.as_deref().unwrap_or(&structure.elements.rest);

@@ -62,7 +62,9 @@ impl Analysis for SelfEquilibrium {
 
     fn run(&self, structure: &Structure, state: State, settings: &Settings, _recorder: &mut dyn Recorder) -> Result<(State, Equilibrium)> {
         let model = &structure.model;
-        let dofs = DofMap::new(model, &[]);
+        // Where the supports leave rigid-body motion free (a free-floating structure), the
+        // gauge holds it: the self-stress is balanced, so the equilibrium is the same.
+        let dofs = DofMap::new(model, &model.gauge());
         let asm = Assembly::new(model, &structure.elements, &dofs, state.positions);
         let mut u = asm.free_coordinates();
         let mut ws = NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_sparsity(model, &dofs));

@@ -6,7 +6,7 @@
 
 use super::frames::{non_finite, FrameBuilder};
 use super::sequence::{Reached, Run, SequenceStage, StageSummary};
-use super::{record_error, solve_error, Analysis, EquilibriumSummary, Settings, StaticEquilibrium};
+use super::{name_free_motion, record_error, solve_error, Analysis, EquilibriumSummary, Settings, StaticEquilibrium};
 use crate::dynamics::{Actuator, Energy, RestSchedule};
 use crate::error::{Error, Result};
 use crate::model::Model;
@@ -229,7 +229,8 @@ impl SequenceStage for Hold {
     }
 
     fn run_from(&self, start: &Reached, run: &Run, recorder: &mut dyn Recorder) -> Result<(Reached, StageSummary)> {
-        let (state, hold) = Analysis::run(self, run.structure, start.state.clone(), run.settings, recorder)?;
+        let (state, hold) = Analysis::run(self, run.structure, start.state.clone(), run.settings, recorder)
+            .map_err(name_free_motion(&run.structure.model, &[]))?;
         Ok((start.under_same_loads(state), StageSummary::Hold(hold)))
     }
 }

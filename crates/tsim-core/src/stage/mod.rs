@@ -92,6 +92,22 @@ fn solve_error<'a>(
     }
 }
 
+/// A static stage's failure (static, folding, hold) with the rigid-body motion the supports
+/// and `prescribed` directions leave free, where they leave one
+/// ([`Model::require_supports`](crate::model::Model::require_supports)). Such a stage is
+/// not refused up front: a loaded structure free to move has an equilibrium where the load
+/// holds it (a pendulum hangs under gravity, stiffened by its tension), none where the
+/// load pushes it along the free motion; only the solve can tell.
+fn name_free_motion<'a>(model: &'a crate::model::Model, prescribed: &'a [[bool; 3]]) -> impl FnOnce(Error) -> Error + 'a {
+    move |error| match model.require_supports(prescribed) {
+        Ok(()) => error,
+        Err(free) => Error::Explained {
+            source: Box::new(error),
+            note: free.to_string(),
+        },
+    }
+}
+
 /// A recorder failure as a stage error, keeping its source.
 fn record_error(stage: &str) -> impl Fn(RecordError) -> Error + '_ {
     move |source| Error::Record {

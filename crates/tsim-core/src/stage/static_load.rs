@@ -6,7 +6,7 @@
 
 use super::frames::{non_finite, FrameBuilder};
 use super::sequence::{Reached, Run, SequenceStage, StageSummary};
-use super::{record_error, solve_error, Analysis, EquilibriumSummary, Settings, StaticEquilibrium};
+use super::{name_free_motion, record_error, solve_error, Analysis, EquilibriumSummary, Settings, StaticEquilibrium};
 use crate::dynamics::Energy;
 use crate::error::{Error, Result};
 use crate::record::{Recorder, Stage};
@@ -479,7 +479,8 @@ impl SequenceStage for StaticLoad {
 
     /// The loads of its start stay on, with its pattern at the factor it ended at.
     fn run_from(&self, start: &Reached, run: &Run, recorder: &mut dyn Recorder) -> Result<(Reached, StageSummary)> {
-        let (state, statics) = Analysis::run(self, run.structure, start.state.clone(), run.settings, recorder)?;
+        let (state, statics) = Analysis::run(self, run.structure, start.state.clone(), run.settings, recorder)
+            .map_err(name_free_motion(&run.structure.model, &[]))?;
         let dead_load = self.dead_load(&start.dead_load, statics.load_factor);
         Ok((Reached { state, dead_load }, StageSummary::Static(statics)))
     }

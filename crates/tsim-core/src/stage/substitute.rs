@@ -76,7 +76,7 @@ impl SubstitutionSummary {
     /// Balance, forces, cable stretch, stability and mass of `structure` at `state`.
     pub fn new(structure: &Structure, state: &State) -> Result<Self> {
         let model = &structure.model;
-        let dofs = DofMap::new(model, &[]);
+        let dofs = DofMap::new(model, &model.gauge());
         let asm = Assembly::new(model, &structure.elements, &dofs, state.positions.clone());
         let stretch = model
             .members
@@ -125,7 +125,7 @@ impl SubstitutionSummary {
 /// that minimises |A_s δ + r| (A_s the struts' columns of the equilibrium matrix on the
 /// free DOFs, r the out-of-balance), a small normal-equations solve (one unknown per strut).
 pub fn balanced_forces(model: &Model, positions: &[Vector3<f64>], forces: &[f64]) -> Vec<f64> {
-    let dofs = DofMap::new(model, &[]);
+    let dofs = DofMap::new(model, &model.gauge());
     let struts: Vec<usize> = (0..model.members.len())
         .filter(|&m| model.members[m].kind == MemberKind::Strut)
         .collect();
@@ -244,7 +244,7 @@ pub fn substitute(
         rest.push(l0);
     }
     let elements = Elements { laws, rest };
-    let dofs = DofMap::new(model, &[]);
+    let dofs = DofMap::new(model, &model.gauge());
     let asm = Assembly::new(model, &elements, &dofs, positions.to_vec());
     let residual = asm.max_free_residual();
     let max_force = asm.states.iter().map(|s| s.force.abs()).fold(0.0, f64::max);
