@@ -62,9 +62,9 @@ pub struct Integrator {
 /// member cannot push: its damping force is held where its total force would be
 /// compression, so that it goes slack with a continuous force and the step equation has
 /// no jump there; a member slack at a step's start is undamped until the step ends
-/// (`tsm::DampingModulus`). Its Jacobian in
-/// the Newmark step is exact and not symmetric, so steps are factored by LU, or by
-/// Cholesky on its symmetric part where the skew part is small against the mass term.
+/// (`tsm::DampingModulus`). Its Jacobian in the Newmark step is exact and not symmetric,
+/// so steps are factored by LU, or by Cholesky on its symmetric part where the skew part
+/// is small against the mass term.
 ///
 /// The other three apply β K_T(x)·v with K_T at some state, as the paper does. None is
 /// objective: a rigidly rotating member gets an apparent axial rate (from the lagged or

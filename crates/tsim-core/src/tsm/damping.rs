@@ -84,8 +84,8 @@ fn scatter(dofs: &DofMap, [a, b]: [usize; 2], f: &Vector3<f64>, out: &mut [f64])
 /// ends is stretched at the rate l l̇0/l0). A rigid motion (v_b − v_a = ω × d) of members
 /// of constant rest length has r = 0 and gets no force; the power dissipated, β k r², is
 /// never negative. A tension-only member's force is held at −N where its total would push
-/// ([`DampingModulus`]). For small motions about a state it is β K_0 v: K_T's geometric part is
-/// left out, which is what makes it objective.
+/// ([`DampingModulus`]). For small motions about a state it is β K_0 v: K_T's geometric
+/// part is left out, which is what makes it objective.
 pub struct ObjectiveDamping<'a> {
     /// Topology: each member's end nodes.
     pub model: &'a Model,
@@ -169,9 +169,10 @@ impl ObjectiveDamping<'_> {
     }
 
     /// An upper bound of the norm of the Jacobian's skew part, β k (e (P w)ᵀ − P w eᵀ)/(2l)
-    /// per member (none for a tension-only member held at −N): each member's 6 × 6 block has norm β k |P w|/l, and a row of the global
-    /// matrix meets the blocks of its node's members, so max over nodes of their sum bounds
-    /// it (Gershgorin). `node_sum`: a buffer, one entry per node.
+    /// per member (none for a tension-only member held at −N): each member's 6 × 6 block
+    /// has norm β k |P w|/l, and a row of the global matrix meets the blocks of its node's
+    /// members, so max over nodes of their sum bounds it (Gershgorin). `node_sum`: a
+    /// buffer, one entry per node.
     ///
     /// Why: the skew part comes from the members' turning rates |P w|/l, and against the
     /// step matrix's mass term M/(βΔt²) it is usually small (a 47 × 47 grid deploying: the
@@ -257,7 +258,8 @@ pub enum MemberDamping<'a> {
     /// [`ObjectiveDamping`]: β k r along the member, k its modulus, r its elastic extension
     /// rate (`rest_rate`: l̇0/l0 per member, empty where no rest length changes).
     Objective {
-        /// Each member's modulus k = dN/dl [N/m] (zero where slack now or at the step's start; [`DampingModulus`]).
+        /// Each member's modulus k = dN/dl [N/m] (zero where slack now or at the step's
+        /// start; [`DampingModulus`]).
         moduli: &'a [DampingModulus],
         /// Rayleigh's β [s].
         beta: f64,
@@ -294,8 +296,8 @@ pub fn member_damping_all(
 
 /// Each member's axial damping force [N], tension positive (the force a member's damping
 /// adds to its elastic N), at node `velocities`: β k r for [`ObjectiveDamping`] (held at
-/// −N for a tension-only member whose total would push), the
-/// projection on the member of β k w for the βK variants. A βK variant's block also has a
+/// −N for a tension-only member whose total would push), the projection on the member of
+/// β k w for the βK variants. A βK variant's block also has a
 /// transverse part (β N/l times the relative velocity across the member): a force on the
 /// nodes, in their balance and the reactions, but no force of the member's.
 pub fn member_axial_damping(model: &Model, states: &[MemberState], damping: MemberDamping, velocities: &[Vector3<f64>], out: &mut [f64]) {
