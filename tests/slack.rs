@@ -5,6 +5,8 @@
 //! tension-only member's total force is max(0, N + β k r) while taut and 0 while slack
 //! (`tsm::DampingModulus`), and the recorded forces are those of that equation.
 
+mod common;
+
 use nalgebra::Vector3;
 use tsim::config::{parse_case, CaseConfig};
 use tsim::model::generate::TowerSpec;
@@ -12,13 +14,16 @@ use tsim::model::MemberKind;
 use tsim::pipeline::run_case;
 use tsim::record::{Constraints, Frame, ModelRecord, RecordResult, Recorder, Stage};
 
-/// One transient stage's frames: time, positions, total and viscous member forces; and
-/// which members are cables (every cable here is tension-only).
+/// One transient stage's frames: time, positions, total and viscous member forces,
+/// applied loads, reactions; with the stage's constraints, the member end nodes and which
+/// members are cables (every cable here is tension-only).
 #[derive(Default)]
 struct Log {
     stage: &'static str,
     recording: bool,
+    ends: Vec<[usize; 2]>,
     cables: Vec<usize>,
+    constraints: Option<Constraints>,
     frames: Vec<Logged>,
 }
 
@@ -27,16 +32,22 @@ struct Logged {
     positions: Vec<Vector3<f64>>,
     forces: Vec<f64>,
     viscous: Vec<f64>,
+    applied: Vec<Vector3<f64>>,
+    reactions: Vec<f64>,
 }
 
 impl Recorder for Log {
     fn model(&mut self, record: &ModelRecord) -> RecordResult {
-        let members = record.model.members.iter().enumerate();
-        self.cables = members.filter(|(_, m)| m.kind == MemberKind::Cable).map(|(e, _)| e).collect();
+        let members = &record.model.members;
+        self.ends = members.iter().map(|m| m.nodes).collect();
+        self.cables = (0..members.len()).filter(|&e| members[e].kind == MemberKind::Cable).collect();
         Ok(())
     }
-    fn begin_stage(&mut self, stage: &Stage, _: &Constraints) -> RecordResult {
+    fn begin_stage(&mut self, stage: &Stage, constraints: &Constraints) -> RecordResult {
         self.recording = stage.name() == self.stage;
+        if self.recording {
+            self.constraints = Some(constraints.clone());
+        }
         Ok(())
     }
     fn frame(&mut self, f: &Frame) -> RecordResult {
@@ -46,6 +57,8 @@ impl Recorder for Log {
                 positions: f.positions.to_vec(),
                 forces: f.forces.to_vec(),
                 viscous: f.viscous_forces.expect("a transient frame has its viscous forces").to_vec(),
+                applied: f.applied.to_vec(),
+                reactions: f.reactions.to_vec(),
             });
         }
         Ok(())
@@ -60,14 +73,29 @@ fn run(cfg: &CaseConfig, stage: &'static str) -> Log {
 }
 
 /// What the cables did over a run: the most compressive total force [N], and how many
-/// (frame, cable) pairs were slack (no elastic force) and held (taut, damping force −N).
+/// (frame, cable) pairs were slack (no elastic force) and held (taut, damping force −N),
+/// counting only cables at a support for the latter.
+///
 /// Asserts that no cable pushes: a held cable's total is N + e·(−N e), N (1 − |e|²) in
 /// floating point, and |e|² of a normalized vector is 1 within a few ulp (the norm's
 /// square root and the division each round once, the squares and their sum three times
-/// more): 8 ε N bounds it; a pushing cable would show the −10² N of before.
+/// more): 8 ε N bounds it; a pushing cable would show the −10² N of before. And that the
+/// reactions are what the members' recorded forces put into the supports (the held
+/// cables at a support among them): round-off of sums of forces up to the largest,
+/// 1e-9 of it, as in tests/member_forces.rs; a reaction taken from the unheld damping
+/// force would be off by a held cable's N + β k r.
 fn cable_census(log: &Log) -> (f64, usize, usize) {
+    let constraints = log.constraints.as_ref().expect("the stage began");
+    let supported = |c: usize| log.ends[c].iter().any(|&n| constraints.0.iter().any(|s| s.node == n));
     let (mut least, mut slack, mut held) = (f64::INFINITY, 0, 0);
     for f in &log.frames {
+        let largest = f.forces.iter().fold(0.0_f64, |m, n| m.max(n.abs()));
+        let gap = common::reaction_gap(&log.ends, constraints, (&f.positions, &f.forces), (&f.applied, &f.reactions));
+        assert!(
+            gap <= 1e-9 * largest,
+            "t = {}: reactions off the members' forces by {gap:e} N",
+            f.time
+        );
         for &c in &log.cables {
             let (total, elastic) = (f.forces[c], f.forces[c] - f.viscous[c]);
             assert!(
@@ -77,7 +105,7 @@ fn cable_census(log: &Log) -> (f64, usize, usize) {
             );
             least = least.min(total);
             slack += usize::from(elastic == 0.0);
-            held += usize::from(elastic > 0.0 && total <= 8.0 * f64::EPSILON * elastic);
+            held += usize::from(supported(c) && elastic > 0.0 && total <= 8.0 * f64::EPSILON * elastic);
         }
     }
     (least, slack, held)
