@@ -157,3 +157,30 @@ fn ogden_compression_branch_is_c1_and_softening() {
         assert!(f_half > f_half_ogden);
     }
 }
+
+/// The tension-only cord: the Ogden curve above λ = 1, bit for bit the cord with the
+/// compression branch there, and nothing below (N = 0, dN/dl = 0, no energy, and no
+/// change with l0 either: the derivatives checked across both sides).
+#[test]
+fn ogden_cord_tension_only_is_slack_below_its_rest_length() {
+    let with_branch = OgdenCord::new(OgdenCord::paper_terms(), 50e-6, 1.0, 0.1);
+    let mut cord = with_branch.clone();
+    cord.tension_only = true;
+    assert!(cord.tension_only() && !with_branch.tension_only());
+    check_derivatives(&cord, 2.0, &[0.3, 1.0, 1.7, 1.99, 2.01, 2.5, 4.0, 6.0]);
+    for l in [2.0, 2.01, 2.5, 4.0] {
+        assert_eq!(cord.eval(l, 2.0), with_branch.eval(l, 2.0), "l = {l}");
+        assert_eq!(cord.energy(l, 2.0), with_branch.energy(l, 2.0), "l = {l}");
+        assert_eq!(cord.d_energy_d_rest(l, 2.0), with_branch.d_energy_d_rest(l, 2.0), "l = {l}");
+        assert!(!cord.slack(l, 2.0));
+    }
+    for l in [0.3, 1.0, 1.99] {
+        let e = cord.eval(l, 2.0);
+        assert!(cord.slack(l, 2.0) && with_branch.eval(l, 2.0).force < 0.0);
+        assert_eq!((e.force, e.stiffness, e.curvature), (0.0, 0.0, 0.0), "l = {l}");
+        assert_eq!(
+            (cord.energy(l, 2.0), cord.d_force_d_rest(l, 2.0), cord.d_energy_d_rest(l, 2.0)),
+            (0.0, 0.0, 0.0)
+        );
+    }
+}

@@ -5,6 +5,8 @@
 //! β EA/l0 (≈ 5e5 N s/m on the paper's struts) turns into a large elastic swing that its
 //! damping force cancels.
 
+mod common;
+
 use nalgebra::Vector3;
 use tsim::config::{parse_case, CaseConfig};
 use tsim::pipeline::run_case;
@@ -86,19 +88,8 @@ fn recorded_member_forces_balance_the_reactions() {
     for f in &log.frames {
         largest = f.forces.iter().fold(largest, |m, n| m.max(n.abs()));
         largest_viscous = f.viscous.iter().fold(largest_viscous, |m, n| m.max(n.abs()));
-        for (c, r) in constraints.0.iter().zip(&f.reactions) {
-            let mut from_members = 0.0;
-            for (m, &[a, b]) in log.ends.iter().enumerate() {
-                let other = match c.node {
-                    n if n == a => b,
-                    n if n == b => a,
-                    _ => continue,
-                };
-                let e = (f.positions[other] - f.positions[c.node]).normalize();
-                from_members -= f.forces[m] * e[c.axis];
-            }
-            worst = worst.max((r - (from_members - f.applied[c.node][c.axis])).abs());
-        }
+        let gap = common::reaction_gap(&log.ends, constraints, (&f.positions, &f.forces), (&f.applied, &f.reactions));
+        worst = worst.max(gap);
     }
     // The launch makes the viscous forces large enough to matter.
     assert!(largest_viscous > 1.0, "largest viscous force {largest_viscous} N");

@@ -26,6 +26,9 @@ pub enum LawSpec {
         /// Slope at λ = 0 over slope at λ_j, in (0, 1).
         #[serde(default = "softening")]
         softening: f64,
+        /// Slack (N = 0) below λ = 1 instead of the compression branch, as a cable.
+        #[serde(default)]
+        tension_only: bool,
     },
 }
 
@@ -77,12 +80,13 @@ impl MaterialSpec {
                 terms,
                 junction,
                 softening,
-            } => Arc::new(OgdenCord::new(
-                terms.iter().map(|t| OgdenTerm { mu: t.mu, alpha: t.alpha }).collect(),
-                self.area,
-                *junction,
-                *softening,
-            )),
+                tension_only,
+            } => {
+                let terms = terms.iter().map(|t| OgdenTerm { mu: t.mu, alpha: t.alpha }).collect();
+                let mut cord = OgdenCord::new(terms, self.area, *junction, *softening);
+                cord.tension_only = *tension_only;
+                Arc::new(cord)
+            }
         }
     }
 }
@@ -113,7 +117,7 @@ pub fn library() -> BTreeMap<String, MaterialSpec> {
         (
             "rubber".into(),
             MaterialSpec {
-                law: LawSpec::Ogden { terms: rubber_terms, junction: 1.0, softening: 0.1 },
+                law: LawSpec::Ogden { terms: rubber_terms, junction: 1.0, softening: 0.1, tension_only: false },
                 area: 50e-6,
                 density: 1000.0,
                 source: "paper eqs 5–8: Ogden K = 3, α = (0.88, 5.31, −1.01), μ = (0.715, 0.0205, −0.091) MPa; A0 = 50 mm² (tsim default, not in the paper); specific gravity 1.0".into(),

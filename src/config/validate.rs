@@ -447,6 +447,7 @@ fn check_material(at: &str, mat: &MaterialSpec, p: &mut Problems) {
             junction,
             softening,
             terms,
+            ..
         } => {
             let field = |key: &str| format!("{at}.law.ogden.{key}");
             p.within(&field("junction"), *junction, 0.0, 1.0 + 1e-12, "(0, 1]");

@@ -52,3 +52,32 @@ pub fn assert_field_errors(errors: &str, file: &str, expect: &[(usize, &str, &st
         );
     }
 }
+
+/// The largest gap between the recorded `reactions` of a frame and what the members'
+/// recorded forces put into the supports less the load applied there: at each constrained
+/// direction −Σ N e − f, e the unit vector from the support's node to the member's other
+/// end (`ends`: each member's nodes). Where the supports do not move, no inertia enters,
+/// and with objective damping a member's whole damping force is along it, so this is
+/// round-off when `forces` are the totals the step's equation balanced.
+pub fn reaction_gap(
+    ends: &[[usize; 2]],
+    constraints: &tsim::record::Constraints,
+    (positions, forces): (&[Vector3<f64>], &[f64]),
+    (applied, reactions): (&[Vector3<f64>], &[f64]),
+) -> f64 {
+    let mut worst: f64 = 0.0;
+    for (c, r) in constraints.0.iter().zip(reactions) {
+        let mut from_members = 0.0;
+        for (m, &[a, b]) in ends.iter().enumerate() {
+            let other = match c.node {
+                n if n == a => b,
+                n if n == b => a,
+                _ => continue,
+            };
+            let e = (positions[other] - positions[c.node]).normalize();
+            from_members -= forces[m] * e[c.axis];
+        }
+        worst = worst.max((r - (from_members - applied[c.node][c.axis])).abs());
+    }
+    worst
+}

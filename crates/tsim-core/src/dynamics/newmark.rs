@@ -59,10 +59,12 @@ pub struct Integrator {
 /// current direction, scaled by its material tangent: f = β (dN/dl) l̇ e. A rigid-body
 /// motion gets no damping force, the dissipated power β (dN/dl) l̇² is never negative, and
 /// about a fixed state it is β K_0 v (K_T without its geometric part). A tension-only
-/// member keeps the branch (taut or slack) of the step's start for dN/dl, so that the step
-/// equation stays continuous where it goes slack (`tsm::DampingModulus`). Its Jacobian in
-/// the Newmark step is exact and not symmetric, so steps are factored by LU, or by
-/// Cholesky on its symmetric part where the skew part is small against the mass term.
+/// member cannot push: its damping force is held where its total force would be
+/// compression, so that it goes slack with a continuous force and the step equation has
+/// no jump there; a member slack at a step's start is undamped until the step ends
+/// (`tsm::DampingModulus`). Its Jacobian in the Newmark step is exact and not symmetric,
+/// so steps are factored by LU, or by Cholesky on its symmetric part where the skew part
+/// is small against the mass term.
 ///
 /// The other three apply β K_T(x)·v with K_T at some state, as the paper does. None is
 /// objective: a rigidly rotating member gets an apparent axial rate (from the lagged or
@@ -548,7 +550,7 @@ mod tests {
     use crate::model::generate::TowerSpec;
     use crate::model::MemberKind;
     use crate::solve::LinearSolverChoice;
-    use crate::tsm::{block_product, scaled_blocks, DampingModulus, EndSlots};
+    use crate::tsm::{block_product, member_axial_damping, scaled_blocks, DampingModulus, EndSlots, MemberDamping};
     use crate::tsm::{DofMap, Elements};
     use faer::Mat;
     use std::sync::Arc;
@@ -574,6 +576,13 @@ mod tests {
     /// `actuate`, the cables' rest lengths shrink by half over 0.1 s as it moves (so that
     /// the rest-length rate enters the step's damping force and Jacobian).
     fn moving_prism(tangent: DampingTangent, actuate: bool, run: impl FnOnce(&mut Newmark)) {
+        let cable = OgdenCord::new(OgdenCord::paper_terms(), 50e-6, 1.0, 0.1);
+        prism_in_motion(tangent, actuate, (cable, 1.2), run);
+    }
+
+    /// [`moving_prism`] with the cables `cable` at stretch `stretch` (l/l0 in the nominal
+    /// shape).
+    fn prism_in_motion(tangent: DampingTangent, actuate: bool, (cable, stretch): (OgdenCord, f64), run: impl FnOnce(&mut Newmark)) {
         let model = TowerSpec {
             struts: 3,
             ..TowerSpec::paper()
@@ -584,7 +593,7 @@ mod tests {
             ea: 1e5,
             tension_only: false,
         });
-        let cable: Arc<dyn ForceLaw> = Arc::new(OgdenCord::new(OgdenCord::paper_terms(), 50e-6, 1.0, 0.1));
+        let cable: Arc<dyn ForceLaw> = Arc::new(cable);
         let (laws, rest): (Vec<_>, Vec<f64>) = model
             .members
             .iter()
@@ -592,7 +601,7 @@ mod tests {
                 let l = (x0[m.nodes[1]] - x0[m.nodes[0]]).norm();
                 match m.kind {
                     MemberKind::Strut => (strut.clone(), l),
-                    MemberKind::Cable => (cable.clone(), l / 1.2),
+                    MemberKind::Cable => (cable.clone(), l / stretch),
                 }
             })
             .unzip();
@@ -666,68 +675,146 @@ mod tests {
         ] {
             moving_prism(tangent, actuate, |nm| {
                 assert_eq!(nm.rest_rate().iter().any(|&r| r != 0.0), actuate);
-                if let Some(o) = objective(nm) {
-                    o.symmetric_below = symmetric_below;
-                }
-                let n = nm.mass.len();
-                let dt = 0.01;
-                let u: Vec<f64> = nm
-                    .next
-                    .trial
-                    .iter()
-                    .enumerate()
-                    .map(|(i, t)| t + 1e-3 * ((i * 7) % 5) as f64)
-                    .collect();
-                let mut problem = StepProblem { nm, dt };
-                let mut r = vec![0.0; n];
-                problem.residual(&u, &mut r);
-                let mut k = Mat::<f64>::zeros(n, n);
-                problem.tangent(&mut k);
-                let symmetrized = problem.symmetric() && tangent == DampingTangent::Objective;
-                assert_eq!(symmetrized, symmetric_below > 0.0, "{tangent:?}");
-                let v_frozen = problem.nm.next.v.clone();
-                let mut blocks = vec![nalgebra::Matrix3::zeros(); problem.nm.asm.states.len()];
-                let mut ends = EndSlots::new(problem.nm.asm.model, problem.nm.asm.dofs);
-                let h = 1e-6;
-                let (mut rp, mut rm, mut gp, mut gm) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-                // The expected tangent, column by column, and the largest omitted term.
-                let mut expected = Mat::<f64>::zeros(n, n);
-                let mut omitted_size: f64 = 0.0;
-                for j in 0..n {
-                    let (mut up, mut um) = (u.clone(), u.clone());
-                    up[j] += h;
-                    um[j] -= h;
-                    for (u, r, g) in [(&up, &mut rp, &mut gp), (&um, &mut rm, &mut gm)] {
-                        problem.residual(u, r);
-                        // β K_T(u) at the frozen velocities: what `Current` leaves out.
-                        let nm = &*problem.nm;
-                        g.fill(0.0);
-                        scaled_blocks(&nm.asm.states, nm.rayleigh().beta, &mut blocks);
-                        block_product(&blocks, &mut ends, &v_frozen, g);
-                    }
-                    for i in 0..n {
-                        let exact = -(rp[i] - rm[i]) / (2.0 * h);
-                        let omitted = (gp[i] - gm[i]) / (2.0 * h);
-                        omitted_size = omitted_size.max(omitted.abs());
-                        expected[(i, j)] = if tangent == DampingTangent::Current {
-                            exact - omitted
-                        } else {
-                            exact
-                        };
-                    }
-                }
-                if symmetrized {
-                    let skew = symmetrize(&mut expected);
-                    assert!(skew > 1.0, "the skew part is only {skew:e} N/m");
-                }
-                let worst = (0..n)
-                    .flat_map(|i| (0..n).map(move |j| (i, j)))
-                    .fold(0.0_f64, |w, (i, j)| w.max((k[(i, j)] - expected[(i, j)]).abs()));
-                assert!(worst < 1e-3, "{tangent:?}: tangent differs from −∂r/∂u by {worst:e} N/m");
-                // The omitted term is large enough that the check above tells it apart.
-                assert!(omitted_size > 1.0, "{tangent:?}: ∂K_T/∂x·v only {omitted_size:e} N/m");
+                assert_step_jacobian(nm, tangent, symmetric_below);
             });
         }
+    }
+
+    /// The objective step Jacobian where tension-only members are held at no compression
+    /// ([`DampingModulus`]): the prism's cables tension-only rubber barely stretched
+    /// (λ = 1.0005: N ≈ 0.03 N), so that at the trial point some shorten fast enough to be
+    /// held (β k r < −N: 3 of 24), some are damped as usual (17) and some are slack (4); exact and
+    /// symmetrized, against central differences as in
+    /// [`step_jacobian_matches_finite_differences`]. Central differences need each member
+    /// away from its switch β k r = −N by more than a step h = 1e-6 m moves it
+    /// ((c_v β k + k) h ≲ (200 · 0.01 · 20 + 20) · 1e-6 ≈ 6e-5 N, k = A0 F'(1)/l0 ≲ 20 N/m
+    /// here): 1e-3 N is asserted.
+    #[test]
+    fn step_jacobian_of_held_tension_only_members_matches_finite_differences() {
+        let mut cable = OgdenCord::new(OgdenCord::paper_terms(), 50e-6, 1.0, 0.1);
+        cable.tension_only = true;
+        for symmetric_below in [0.0, f64::INFINITY] {
+            prism_in_motion(DampingTangent::Objective, false, (cable.clone(), 1.0005), |nm| {
+                let u = off_predictor(nm);
+                StepProblem { nm, dt: 0.01 }.residual(&u, &mut vec![0.0; u.len()]);
+                let (held, damped, slack) = held_members(nm);
+                assert!(
+                    held >= 1 && damped >= 1 && slack >= 1,
+                    "held {held}, damped {damped}, slack {slack}"
+                );
+                assert_step_jacobian(nm, DampingTangent::Objective, symmetric_below);
+            });
+        }
+    }
+
+    /// At `nm`'s current iterate, how many tension-only members are held at −N, damped by
+    /// β k r and slack, asserting that each is at least 1e-3 N away from its switch.
+    fn held_members(nm: &Newmark) -> (usize, usize, usize) {
+        let asm = &nm.asm;
+        let mut velocities = vec![Vector3::zeros(); asm.model.node_count()];
+        for (i, &vi) in nm.next.v.iter().enumerate() {
+            let (n, a) = asm.dofs.owner(i);
+            velocities[n][a] = vi;
+        }
+        let free: Vec<DampingModulus> = moduli(nm).iter().map(|m| DampingModulus { tension_only: false, ..*m }).collect();
+        let beta = nm.rayleigh().beta;
+        let (mut held, mut unheld) = (vec![0.0; free.len()], vec![0.0; free.len()]);
+        for (moduli, out) in [(moduli(nm), &mut held), (&free[..], &mut unheld)] {
+            let damping = MemberDamping::Objective {
+                moduli,
+                beta,
+                rest_rate: &[],
+            };
+            member_axial_damping(asm.model, &asm.states, damping, &velocities, out);
+        }
+        let mut counts = (0, 0, 0);
+        for (e, s) in asm.states.iter().enumerate().filter(|(e, _)| moduli(nm)[*e].tension_only) {
+            if s.force == 0.0 {
+                counts.2 += 1;
+                continue;
+            }
+            assert!(
+                (unheld[e] + s.force).abs() > 1e-3,
+                "member {e} at its switch: {} N",
+                unheld[e] + s.force
+            );
+            if unheld[e] > -s.force {
+                assert_eq!(held[e], unheld[e]);
+                counts.1 += 1;
+            } else {
+                // Recorded as e·(−N e): |e|² is 1 to a few ulp.
+                assert!((held[e] + s.force).abs() <= 1e-14 * s.force, "{} against −{}", held[e], s.force);
+                counts.0 += 1;
+            }
+        }
+        counts
+    }
+
+    /// A trial point off `nm`'s predictor, every coordinate moved by 0 to 4 mm.
+    fn off_predictor(nm: &Newmark) -> Vec<f64> {
+        (nm.next.trial.iter().enumerate())
+            .map(|(i, t)| t + 1e-3 * ((i * 7) % 5) as f64)
+            .collect()
+    }
+
+    /// The step tangent of `nm` (`tangent`, the objective one symmetrized where its skew
+    /// part is below `symmetric_below` of the mass term) against −∂r/∂u by central
+    /// differences at [`off_predictor`] (tolerances: [`step_jacobian_matches_finite_differences`]).
+    fn assert_step_jacobian(nm: &mut Newmark, tangent: DampingTangent, symmetric_below: f64) {
+        if let Some(o) = objective(nm) {
+            o.symmetric_below = symmetric_below;
+        }
+        let n = nm.mass.len();
+        let dt = 0.01;
+        let u = off_predictor(nm);
+        let mut problem = StepProblem { nm, dt };
+        let mut r = vec![0.0; n];
+        problem.residual(&u, &mut r);
+        let mut k = Mat::<f64>::zeros(n, n);
+        problem.tangent(&mut k);
+        let symmetrized = problem.symmetric() && tangent == DampingTangent::Objective;
+        assert_eq!(symmetrized, symmetric_below > 0.0, "{tangent:?}");
+        let v_frozen = problem.nm.next.v.clone();
+        let mut blocks = vec![nalgebra::Matrix3::zeros(); problem.nm.asm.states.len()];
+        let mut ends = EndSlots::new(problem.nm.asm.model, problem.nm.asm.dofs);
+        let h = 1e-6;
+        let (mut rp, mut rm, mut gp, mut gm) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        // The expected tangent, column by column, and the largest omitted term.
+        let mut expected = Mat::<f64>::zeros(n, n);
+        let mut omitted_size: f64 = 0.0;
+        for j in 0..n {
+            let (mut up, mut um) = (u.clone(), u.clone());
+            up[j] += h;
+            um[j] -= h;
+            for (u, r, g) in [(&up, &mut rp, &mut gp), (&um, &mut rm, &mut gm)] {
+                problem.residual(u, r);
+                // β K_T(u) at the frozen velocities: what `Current` leaves out.
+                let nm = &*problem.nm;
+                g.fill(0.0);
+                scaled_blocks(&nm.asm.states, nm.rayleigh().beta, &mut blocks);
+                block_product(&blocks, &mut ends, &v_frozen, g);
+            }
+            for i in 0..n {
+                let exact = -(rp[i] - rm[i]) / (2.0 * h);
+                let omitted = (gp[i] - gm[i]) / (2.0 * h);
+                omitted_size = omitted_size.max(omitted.abs());
+                expected[(i, j)] = if tangent == DampingTangent::Current {
+                    exact - omitted
+                } else {
+                    exact
+                };
+            }
+        }
+        if symmetrized {
+            let skew = symmetrize(&mut expected);
+            assert!(skew > 1.0, "the skew part is only {skew:e} N/m");
+        }
+        let worst = (0..n)
+            .flat_map(|i| (0..n).map(move |j| (i, j)))
+            .fold(0.0_f64, |w, (i, j)| w.max((k[(i, j)] - expected[(i, j)]).abs()));
+        assert!(worst < 1e-3, "{tangent:?}: tangent differs from −∂r/∂u by {worst:e} N/m");
+        // The omitted term is large enough that the check above tells it apart.
+        assert!(omitted_size > 1.0, "{tangent:?}: ∂K_T/∂x·v only {omitted_size:e} N/m");
     }
 
     /// Replaces `m` by its symmetric part ½ (M + Mᵀ); returns the largest entry of the skew part.

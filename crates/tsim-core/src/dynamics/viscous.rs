@@ -35,8 +35,9 @@ pub(super) enum StiffnessTerm {
 
 /// β (dN/dl) r e per member, r its elastic extension rate ([`ObjectiveDamping`]).
 pub(super) struct Objective {
-    /// Per member, whether it was taut at the step's start, and its damping modulus at the
-    /// current states on that branch ([`DampingModulus`]).
+    /// Per member, whether it was taut at the step's start (a member slack then is
+    /// undamped for the step), and its damping modulus at the current states
+    /// ([`DampingModulus`]).
     taut: Vec<bool>,
     pub(super) moduli: Vec<DampingModulus>,
     /// Whether the step matrix last assembled is the Jacobian's symmetric part, the
@@ -84,19 +85,19 @@ impl Viscous {
         };
         let mut viscous = Viscous { rayleigh, term };
         match &mut viscous.term {
-            StiffnessTerm::Objective(o) => o.keep_branches(asm),
+            StiffnessTerm::Objective(o) => o.keep_taut(asm),
             StiffnessTerm::Tangent(t) => t.form_blocks(rayleigh.beta, asm),
         }
         viscous
     }
 
     /// At the start of a step, `asm` at the last converged state: `LastConverged` takes its
-    /// K_T, objective damping keeps every member's branch (taut or slack) for the step. Taken
+    /// K_T, objective damping notes which members are slack (undamped for the step). Taken
     /// here, not at the end of the previous step, so that between steps the term is still
     /// the one the last converged equation used ([`Self::member_force`]).
     pub(super) fn start_step(&mut self, asm: &Assembly) {
         match &mut self.term {
-            StiffnessTerm::Objective(o) => o.keep_branches(asm),
+            StiffnessTerm::Objective(o) => o.keep_taut(asm),
             StiffnessTerm::Tangent(t) if t.which == DampingTangent::LastConverged => {
                 t.states.copy_from_slice(&asm.states);
                 t.form_blocks(self.rayleigh.beta, asm);
@@ -198,9 +199,9 @@ impl Viscous {
 }
 
 impl Objective {
-    /// Every member keeps its branch (taut or slack) of the current states until the next
+    /// Notes which members are taut at the current states, the ones damped until the next
     /// call, at the start of a step ([`DampingModulus`]).
-    fn keep_branches(&mut self, asm: &Assembly) {
+    fn keep_taut(&mut self, asm: &Assembly) {
         taut_members(&asm.elements.laws, &asm.rest, &asm.states, &mut self.taut);
         self.update_moduli(asm);
     }

@@ -20,19 +20,15 @@ impl ForceLaw for LinearElastic {
                 curvature: 0.0,
             };
         }
-        self.eval_taut(l, l0)
-    }
-
-    fn slack(&self, l: f64, l0: f64) -> bool {
-        self.tension_only && l < l0
-    }
-
-    fn eval_taut(&self, l: f64, l0: f64) -> LawEval {
         LawEval {
             force: self.ea * (l - l0) / l0,
             stiffness: self.ea / l0,
             curvature: 0.0,
         }
+    }
+
+    fn tension_only(&self) -> bool {
+        self.tension_only
     }
 
     fn energy(&self, l: f64, l0: f64) -> f64 {

@@ -37,15 +37,14 @@ pub trait ForceLaw: Send + Sync + std::fmt::Debug {
     fn d_energy_d_rest(&self, l: f64, l0: f64) -> f64;
     /// Short name for errors and outputs.
     fn name(&self) -> &'static str;
-    /// Whether a member of length `l` is slack: a tension-only law carries nothing there,
-    /// and its dN/dl drops to zero discontinuously at l0. Default: never.
-    fn slack(&self, _l: f64, _l0: f64) -> bool {
+    /// Whether the law cannot push: below its rest length it is slack and carries
+    /// nothing, its dN/dl dropping to zero there. Its total force with damping is then held
+    /// at no compression too (`tsm::ObjectiveDamping`). Default: no.
+    fn tension_only(&self) -> bool {
         false
     }
-    /// [`ForceLaw::eval`] on the taut branch, continued below l0 where the member is slack
-    /// (a time step's damping keeps a member's branch: `tsm::DampingModulus`). Default:
-    /// `eval`, for a law with one branch.
-    fn eval_taut(&self, l: f64, l0: f64) -> LawEval {
-        self.eval(l, l0)
+    /// Whether a member of length `l` is slack: a tension-only law below its rest length.
+    fn slack(&self, l: f64, l0: f64) -> bool {
+        self.tension_only() && l < l0
     }
 }

@@ -62,6 +62,9 @@ fn ogden_energy_density(terms: &[OgdenTerm], lambda: f64) -> f64 {
 /// With s = √(aλ_j + b) and F'_j the Ogden slope at λ_j these give
 /// s = 2 r² F'_j λ_j / (1 − r²), a = −2 s F'_j, b = s² − a λ_j, c = −s − F(λ_j).
 /// Since a < 0 the branch slope −a / (2√(aλ + b)) falls as λ falls: the cord softens.
+///
+/// With `tension_only` the cord is slack below λ = 1 instead (N = 0, dN/dl = 0, no
+/// energy), as a cable is: the branch is then never used.
 #[derive(Clone, Debug, PartialEq)]
 pub struct OgdenCord {
     /// The Ogden series Σ μ_i, α_i of the rubber.
@@ -70,6 +73,9 @@ pub struct OgdenCord {
     pub area: f64,
     /// Junction stretch λ_j in (0, 1].
     pub junction: f64,
+    /// Slack (nothing carried) below λ = 1 instead of the compression branch; `new`
+    /// leaves it off.
+    pub tension_only: bool,
     branch: Branch,
 }
 
@@ -105,6 +111,7 @@ impl OgdenCord {
             terms,
             area,
             junction,
+            tension_only: false,
             branch: Branch {
                 a,
                 b,
@@ -122,6 +129,9 @@ impl OgdenCord {
 
     /// F(λ), dF/dλ, d²F/dλ² [Pa] including the compression branch.
     fn stress_derivatives(&self, lambda: f64) -> (f64, f64, f64) {
+        if self.tension_only && lambda < 1.0 {
+            return (0.0, 0.0, 0.0);
+        }
         if lambda >= self.junction {
             return ogden_stress_derivatives(&self.terms, lambda);
         }
@@ -134,6 +144,9 @@ impl OgdenCord {
 
     /// ∫_1^λ F dλ' [Pa].
     fn energy_density(&self, lambda: f64) -> f64 {
+        if self.tension_only && lambda < 1.0 {
+            return 0.0;
+        }
         if lambda >= self.junction {
             return ogden_energy_density(&self.terms, lambda) - ogden_energy_density(&self.terms, 1.0);
         }
@@ -172,7 +185,15 @@ impl ForceLaw for OgdenCord {
         self.area * self.energy_density(lambda) - lambda * self.eval(l, l0).force
     }
 
+    fn tension_only(&self) -> bool {
+        self.tension_only
+    }
+
     fn name(&self) -> &'static str {
-        "ogden_cord"
+        if self.tension_only {
+            "ogden_cord_tension_only"
+        } else {
+            "ogden_cord"
+        }
     }
 }

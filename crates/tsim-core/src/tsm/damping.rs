@@ -8,53 +8,53 @@ use crate::solve::TangentSink;
 use nalgebra::{Matrix3, Vector3};
 use std::sync::Arc;
 
-/// The material tangent that objective damping scales a member's extension rate by:
-/// dN/dl and d²N/dl² on the branch of its law the member was on at the step's start.
+/// What objective damping scales a member's elastic extension rate r by: dN/dl and
+/// d²N/dl² at its current length, and whether the member can push.
 ///
-/// Why not simply the current dN/dl: a tension-only member's dN/dl jumps from EA/l0 to 0
-/// where it goes slack, and with it the damping force β (dN/dl) l̇, by β (EA/l0) l̇. The
-/// Newmark step's residual is then discontinuous in the coordinates and may have no root
-/// near the jump: Newton cycles between the two sides (a 47 × 47 steel-cable grid's
-/// deployment alternated between max|r| = 302 N and 215 N for 50 iterations, until the
-/// step was cut; one step in five needed three cuts). Keeping each member's branch for a
-/// step makes the residual smooth within it; a member that goes slack during a step is
-/// damped on its taut branch until the step ends, and one that snaps taut is undamped
-/// until then. Both are O(Δt) at the event only, the order any time integrator has at the
-/// kink itself. The modulus depends on lengths alone, so the force stays objective, and it
-/// is never negative, so dissipation is not either.
+/// A tension-only member ([`ForceLaw::tension_only`]: a cable) is a Kelvin–Voigt cord that
+/// cannot push: its total force N + d is max(0, N + β k r) while taut and 0 while slack,
+/// so its damping force is d = max(β k r, −N) taut and 0 slack. Going slack is then
+/// continuous: shortening fast, the total reaches 0 before l reaches l0 and stays 0
+/// through it, so the Newmark step's residual has a kink there, not a jump. (The
+/// undamped-at-l0 alternative, d = β (dN/dl) r with the current dN/dl, jumps by
+/// β (EA/l0) r at l0: on a 47 × 47 steel-cable grid's deployment Newton then cycled
+/// between two sides for 50 iterations, until the step was cut.) Held at −N, a member
+/// dissipates −N r ≥ 0 (r < 0 there), so dissipation is never negative.
+///
+/// Snapping taut is the other way round: a Kelvin–Voigt cord's force jumps from 0 to
+/// β k r > 0 as it reaches l0 stretching, and a step residual with that jump may have no
+/// root near it. A member slack at a step's start is therefore undamped until the step
+/// ends (`taut`: false), and damped from the next step on: an error of at most β k r over
+/// one step at each such event, O(Δt) in the velocity, which a fixed step cannot avoid
+/// without locating the event (tests/slack.rs measures the order this leaves).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DampingModulus {
-    /// dN/dl [N/m].
+    /// dN/dl [N/m]; zero for a member slack now or at the step's start.
     pub stiffness: f64,
     /// d²N/dl² [N/m²].
     pub curvature: f64,
+    /// The member cannot push: its damping force is held at no less than −N.
+    pub tension_only: bool,
 }
 
-/// Which members are on their taut branch (not slack) at `states`: the branch each keeps for
-/// a step's damping ([`DampingModulus`]).
+/// Which members are on their taut branch (not slack) at `states`: the members a step
+/// damps ([`DampingModulus`]).
 pub fn taut_members(laws: &[Arc<dyn ForceLaw>], rest: &[f64], states: &[MemberState], taut: &mut [bool]) {
     for (((t, s), law), &l0) in taut.iter_mut().zip(states).zip(laws).zip(rest) {
         *t = !law.slack(s.length, l0);
     }
 }
 
-/// Each member's damping modulus at `states` on the branch `taut` says.
+/// Each member's damping modulus at `states`: zero where it is slack now or was at the
+/// step's start (`taut` false).
 pub fn damping_moduli(laws: &[Arc<dyn ForceLaw>], rest: &[f64], states: &[MemberState], taut: &[bool], moduli: &mut [DampingModulus]) {
     for (e, (m, s)) in moduli.iter_mut().zip(states).enumerate() {
-        let (law, l0) = (&laws[e], rest[e]);
-        *m = if !taut[e] {
-            DampingModulus::default()
-        } else if law.slack(s.length, l0) {
-            let eval = law.eval_taut(s.length, l0);
-            DampingModulus {
-                stiffness: eval.stiffness,
-                curvature: eval.curvature,
-            }
-        } else {
-            DampingModulus {
-                stiffness: s.stiffness,
-                curvature: s.curvature,
-            }
+        let law = &laws[e];
+        let damped = taut[e] && !law.slack(s.length, rest[e]);
+        *m = DampingModulus {
+            stiffness: if damped { s.stiffness } else { 0.0 },
+            curvature: if damped { s.curvature } else { 0.0 },
+            tension_only: law.tension_only(),
         };
     }
 }
@@ -83,8 +83,9 @@ fn scatter(dofs: &DofMap, [a, b]: [usize; 2], f: &Vector3<f64>, out: &mut [f64])
 /// up (a cable reeled in at constant stretch strains nothing, one reeled in between fixed
 /// ends is stretched at the rate l l̇0/l0). A rigid motion (v_b − v_a = ω × d) of members
 /// of constant rest length has r = 0 and gets no force; the power dissipated, β k r², is
-/// never negative. For small motions about a state it is β K_0 v: K_T's geometric part is
-/// left out, which is what makes it objective.
+/// never negative. A tension-only member's force is held at −N where its total would push
+/// ([`DampingModulus`]). For small motions about a state it is β K_0 v: K_T's geometric
+/// part is left out, which is what makes it objective.
 pub struct ObjectiveDamping<'a> {
     /// Topology: each member's end nodes.
     pub model: &'a Model,
@@ -92,7 +93,7 @@ pub struct ObjectiveDamping<'a> {
     pub dofs: &'a DofMap,
     /// Each member at the state (length, unit vector e).
     pub states: &'a [MemberState],
-    /// Each member's modulus k = dN/dl [N/m], on its step's branch.
+    /// Each member's modulus k = dN/dl [N/m] (zero where slack now or at the step's start).
     pub moduli: &'a [DampingModulus],
     /// Velocities of the free DOFs [m/s].
     pub v: &'a [f64],
@@ -109,6 +110,19 @@ fn elastic_rate(s: &MemberState, w: &Vector3<f64>, rest_rate: &[f64], e: usize) 
     s.dir.dot(w) - rest_rate.get(e).map_or(0.0, |rho| rho * s.length)
 }
 
+/// A member's axial damping force β k r at elastic extension rate `rate`, or −N where a
+/// tension-only member's total N + β k r would push ([`DampingModulus`]); with whether it
+/// is held there.
+#[inline(always)]
+fn axial_damping(s: &MemberState, m: &DampingModulus, beta: f64, rate: f64) -> (f64, bool) {
+    let d = beta * m.stiffness * rate;
+    if m.tension_only && d < -s.force {
+        (-s.force, true)
+    } else {
+        (d, false)
+    }
+}
+
 impl ObjectiveDamping<'_> {
     /// Per member: its nodes, state, damping modulus and relative velocity w = v_b − v_a.
     fn members(&self) -> impl Iterator<Item = (usize, [usize; 2], &MemberState, &DampingModulus, Vector3<f64>)> + '_ {
@@ -120,8 +134,8 @@ impl ObjectiveDamping<'_> {
     /// out += the damping force on the free DOFs.
     pub fn add_force(&self, out: &mut [f64]) {
         for (e, nodes, s, m, w) in self.members() {
-            let rate = elastic_rate(s, &w, self.rest_rate, e);
-            scatter(self.dofs, nodes, &(s.dir * (self.beta * m.stiffness * rate)), out);
+            let (d, _) = axial_damping(s, m, self.beta, elastic_rate(s, &w, self.rest_rate, e));
+            scatter(self.dofs, nodes, &(s.dir * d), out);
         }
     }
 
@@ -132,10 +146,15 @@ impl ObjectiveDamping<'_> {
     /// e (P w)ᵀ term), so the step matrix needs a general (LU) factorization. With
     /// `symmetric` that term is replaced by its symmetric part, ½ (e (P w)ᵀ + P w eᵀ): the
     /// symmetric part of the Jacobian, which Cholesky factors (see [`Self::skew_bound`] for
-    /// when it serves).
+    /// when it serves). A tension-only member held at d = −N e has the block −k_T, minus
+    /// its elastic tangent block ([`member_block`]: K_0 and K_G), symmetric, free of v.
     pub fn add_jacobian(&self, c_v: f64, symmetric: bool, sink: &mut (impl TangentSink + ?Sized)) {
         for (e, nodes, s, m, w) in self.members() {
             let rate = elastic_rate(s, &w, self.rest_rate, e);
+            if axial_damping(s, m, self.beta, rate).1 {
+                add_member_block(self.dofs, e, nodes, &-member_block(s), sink);
+                continue;
+            }
             let rho = self.rest_rate.get(e).copied().unwrap_or(0.0);
             let ee = s.dir * s.dir.transpose();
             let p = Matrix3::identity() - ee;
@@ -150,9 +169,10 @@ impl ObjectiveDamping<'_> {
     }
 
     /// An upper bound of the norm of the Jacobian's skew part, β k (e (P w)ᵀ − P w eᵀ)/(2l)
-    /// per member: each member's 6 × 6 block has norm β k |P w|/l, and a row of the global
-    /// matrix meets the blocks of its node's members, so max over nodes of their sum bounds
-    /// it (Gershgorin). `node_sum`: a buffer, one entry per node.
+    /// per member (none for a tension-only member held at −N): each member's 6 × 6 block
+    /// has norm β k |P w|/l, and a row of the global matrix meets the blocks of its node's
+    /// members, so max over nodes of their sum bounds it (Gershgorin). `node_sum`: a
+    /// buffer, one entry per node.
     ///
     /// Why: the skew part comes from the members' turning rates |P w|/l, and against the
     /// step matrix's mass term M/(βΔt²) it is usually small (a 47 × 47 grid deploying: the
@@ -162,7 +182,10 @@ impl ObjectiveDamping<'_> {
     /// examples/bench_factor.rs).
     pub fn skew_bound(&self, node_sum: &mut [f64]) -> f64 {
         node_sum.fill(0.0);
-        for (_, nodes, s, m, w) in self.members() {
+        for (e, nodes, s, m, w) in self.members() {
+            if axial_damping(s, m, self.beta, elastic_rate(s, &w, self.rest_rate, e)).1 {
+                continue;
+            }
             let turning = (w - s.dir * s.dir.dot(&w)).norm();
             let norm = (self.beta * m.stiffness * turning / s.length).abs();
             for n in nodes {
@@ -235,7 +258,8 @@ pub enum MemberDamping<'a> {
     /// [`ObjectiveDamping`]: β k r along the member, k its modulus, r its elastic extension
     /// rate (`rest_rate`: l̇0/l0 per member, empty where no rest length changes).
     Objective {
-        /// Each member's modulus k = dN/dl [N/m], on its step's branch.
+        /// Each member's modulus k = dN/dl [N/m] (zero where slack now or at the step's
+        /// start; [`DampingModulus`]).
         moduli: &'a [DampingModulus],
         /// Rayleigh's β [s].
         beta: f64,
@@ -271,8 +295,9 @@ pub fn member_damping_all(
 }
 
 /// Each member's axial damping force [N], tension positive (the force a member's damping
-/// adds to its elastic N), at node `velocities`: β k r for [`ObjectiveDamping`], the
-/// projection on the member of β k w for the βK variants. A βK variant's block also has a
+/// adds to its elastic N), at node `velocities`: β k r for [`ObjectiveDamping`] (held at
+/// −N for a tension-only member whose total would push), the projection on the member of
+/// β k w for the βK variants. A βK variant's block also has a
 /// transverse part (β N/l times the relative velocity across the member): a force on the
 /// nodes, in their balance and the reactions, but no force of the member's.
 pub fn member_axial_damping(model: &Model, states: &[MemberState], damping: MemberDamping, velocities: &[Vector3<f64>], out: &mut [f64]) {
@@ -288,7 +313,7 @@ fn member_damping(model: &Model, e: usize, states: &[MemberState], damping: Memb
     match damping {
         MemberDamping::Objective { moduli, beta, rest_rate } => {
             let s = &states[e];
-            s.dir * (beta * moduli[e].stiffness * elastic_rate(s, &w, rest_rate, e))
+            s.dir * axial_damping(s, &moduli[e], beta, elastic_rate(s, &w, rest_rate, e)).0
         }
         MemberDamping::Blocks(blocks) => blocks[e] * w,
     }
