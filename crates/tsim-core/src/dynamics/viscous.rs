@@ -21,6 +21,11 @@ use nalgebra::{Matrix3, Vector3};
 /// (Measured gains: bench/pipeline.md.)
 pub(super) const SYMMETRIC_CONTRACTION: f64 = REUSE_CONTRACTION;
 
+/// Members whose snapping taut falls within this fraction of a step of the first are taken
+/// as snapping with it: the step stops once for all of them (within 1e-6 of a step, the
+/// time each is undamped too long, or damped too early, is immaterial).
+const SNAP_TOGETHER: f64 = 1e-6;
+
 /// Rayleigh damping C v = α M v + (the β term) of one stage.
 pub(super) struct Viscous {
     pub(super) rayleigh: Rayleigh,
@@ -39,6 +44,15 @@ pub(super) struct Objective {
     /// undamped for the step), and its damping modulus at the current states
     /// ([`DampingModulus`]).
     taut: Vec<bool>,
+    /// The flags of the step before, to see which members start to be damped.
+    was_taut: Vec<bool>,
+    /// Per member, l − l0 at the step's start [m] (negative where slack): where a slack
+    /// member snaps taut within the step ([`Viscous::snap_fraction`]).
+    start_gap: Vec<f64>,
+    /// Members a step stopped at as they snapped taut, damped from the next step's start
+    /// ([`Viscous::damp_from_next_step`]), and those of the current step.
+    damp_next: Vec<usize>,
+    snapping: Vec<usize>,
     pub(super) moduli: Vec<DampingModulus>,
     /// Whether the step matrix last assembled is the Jacobian's symmetric part, the
     /// largest estimated contraction for which it may be ([`SYMMETRIC_CONTRACTION`]), and
@@ -67,6 +81,10 @@ impl Viscous {
         let term = match tangent {
             DampingTangent::Objective => StiffnessTerm::Objective(Objective {
                 taut: vec![true; members],
+                was_taut: vec![true; members],
+                start_gap: vec![0.0; members],
+                damp_next: Vec::new(),
+                snapping: Vec::new(),
                 moduli: vec![DampingModulus::default(); members],
                 symmetric_step: false,
                 symmetric_below: SYMMETRIC_CONTRACTION,
@@ -85,7 +103,9 @@ impl Viscous {
         };
         let mut viscous = Viscous { rayleigh, term };
         match &mut viscous.term {
-            StiffnessTerm::Objective(o) => o.keep_taut(asm),
+            StiffnessTerm::Objective(o) => {
+                o.keep_taut(asm);
+            }
             StiffnessTerm::Tangent(t) => t.form_blocks(rayleigh.beta, asm),
         }
         viscous
@@ -94,16 +114,57 @@ impl Viscous {
     /// At the start of a step, `asm` at the last converged state: `LastConverged` takes its
     /// K_T, objective damping notes which members are slack (undamped for the step). Taken
     /// here, not at the end of the previous step, so that between steps the term is still
-    /// the one the last converged equation used ([`Self::member_force`]).
-    pub(super) fn start_step(&mut self, asm: &Assembly) {
+    /// the one the last converged equation used ([`Self::member_force`]). Whether some
+    /// member is damped now that the last equation left undamped (a cable that snapped
+    /// taut): the damping force jumps at the step's start, and the step should start from
+    /// the acceleration just after the jump.
+    pub(super) fn start_step(&mut self, asm: &Assembly) -> bool {
         match &mut self.term {
-            StiffnessTerm::Objective(o) => o.keep_taut(asm),
+            StiffnessTerm::Objective(o) => o.keep_taut(asm) && self.rayleigh.beta != 0.0,
             StiffnessTerm::Tangent(t) if t.which == DampingTangent::LastConverged => {
                 t.states.copy_from_slice(&asm.states);
                 t.form_blocks(self.rayleigh.beta, asm);
+                false
             }
-            StiffnessTerm::Tangent(_) => {}
+            StiffnessTerm::Tangent(_) => false,
         }
+    }
+
+    /// Damps `members` from the next step's start on its taut branch, though a round-off may
+    /// leave them short of l0 there: the members a step was stopped at as they snapped taut.
+    pub(super) fn damp_from_next_step(&mut self, members: Vec<usize>) {
+        if let StiffnessTerm::Objective(o) = &mut self.term {
+            o.damp_next = members;
+        }
+    }
+
+    /// Where in the step just solved, to `asm`'s state, the first tension-only member slack
+    /// at its start snaps taut, as a fraction of the step (l − l0 interpolated linearly in
+    /// time); `None` where none does, or where the β term does not see it (the paper's
+    /// variants, β = 0).
+    ///
+    /// Why: such a member is undamped for the whole step ([`DampingModulus`]), while a
+    /// Kelvin–Voigt cord's damping force jumps from 0 to β k r as it reaches l0. Over a fixed
+    /// step that is an O(Δt) error in the velocity at each event, and the scheme is first
+    /// order once cables snap taut (tests/slack.rs measured it). Stopping the step at the
+    /// event puts the jump on a step boundary; the crossing's time is then off by the linear
+    /// interpolation's O(Δt²), and second order is kept.
+    /// With the fraction, the members that snap there (within [`SNAP_TOGETHER`] of it).
+    pub(super) fn snap_fraction(&self, asm: &Assembly) -> Option<(f64, Vec<usize>)> {
+        let StiffnessTerm::Objective(o) = &self.term else { return None };
+        if self.rayleigh.beta == 0.0 {
+            return None;
+        }
+        let laws = &asm.elements.laws;
+        let snaps: Vec<(usize, f64)> = (0..o.taut.len())
+            .filter(|&e| !o.taut[e] && laws[e].tension_only() && !laws[e].slack(asm.states[e].length, asm.rest[e]))
+            .map(|e| {
+                let (before, after) = (o.start_gap[e], asm.states[e].length - asm.rest[e]);
+                (e, before / (before - after))
+            })
+            .collect();
+        let first = snaps.iter().map(|s| s.1).min_by(f64::total_cmp)?;
+        Some((first, snaps.iter().filter(|s| s.1 <= first + SNAP_TOGETHER).map(|s| s.0).collect()))
     }
 
     /// At a new iterate of `asm`: `Current` re-forms its blocks, objective damping its moduli.
@@ -200,15 +261,33 @@ impl Viscous {
 
 impl Objective {
     /// Notes which members are taut at the current states, the ones damped until the next
-    /// call, at the start of a step ([`DampingModulus`]).
-    fn keep_taut(&mut self, asm: &Assembly) {
+    /// call, at the start of a step ([`DampingModulus`]), with those a stopped step handed
+    /// on; whether one is damped that was not at the last call.
+    fn keep_taut(&mut self, asm: &Assembly) -> bool {
+        self.was_taut.copy_from_slice(&self.taut);
         taut_members(&asm.elements.laws, &asm.rest, &asm.states, &mut self.taut);
+        self.snapping = std::mem::take(&mut self.damp_next);
+        for &e in &self.snapping {
+            self.taut[e] = true;
+        }
+        for ((gap, s), l0) in self.start_gap.iter_mut().zip(&asm.states).zip(&asm.rest) {
+            *gap = s.length - l0;
+        }
         self.update_moduli(asm);
+        self.taut.iter().zip(&self.was_taut).any(|(&now, &before)| now && !before)
     }
 
-    /// The members' damping moduli at the current states.
+    /// The members' damping moduli at the current states; a member snapping taut at the
+    /// step's start a round-off short of l0 is damped on its taut branch, at l0.
     fn update_moduli(&mut self, asm: &Assembly) {
         damping_moduli(&asm.elements.laws, &asm.rest, &asm.states, &self.taut, &mut self.moduli);
+        for &e in &self.snapping {
+            let (law, l0) = (&asm.elements.laws[e], asm.rest[e]);
+            if law.slack(asm.states[e].length, l0) {
+                let taut = law.eval(l0, l0);
+                (self.moduli[e].stiffness, self.moduli[e].curvature) = (taut.stiffness, taut.curvature);
+            }
+        }
     }
 
     fn at<'a>(&'a self, asm: &'a Assembly, v: &'a [f64], beta: f64, rest_rate: &'a [f64]) -> ObjectiveDamping<'a> {

@@ -24,9 +24,10 @@ use std::sync::Arc;
 /// Snapping taut is the other way round: a Kelvin–Voigt cord's force jumps from 0 to
 /// β k r > 0 as it reaches l0 stretching, and a step residual with that jump may have no
 /// root near it. A member slack at a step's start is therefore undamped until the step
-/// ends (`taut`: false), and damped from the next step on: an error of at most β k r over
-/// one step at each such event, O(Δt) in the velocity, which a fixed step cannot avoid
-/// without locating the event (tests/slack.rs measures the order this leaves).
+/// ends (`taut`: false), and the Newmark step is stopped where it snaps taut, the next
+/// starting with it damped from the acceleration just after the jump
+/// (`dynamics::Newmark::advance`): the jump falls on a step boundary and second order is
+/// kept (tests/slack.rs).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DampingModulus {
     /// dN/dl [N/m]; zero for a member slack now or at the step's start.
