@@ -140,6 +140,7 @@ class Result:
                 self.stage[name] = {k: g[k][:] for k in ("time", "position", "member_force",
                                                          "strain_energy", "external_work",
                                                          "kinetic_energy")}
+            self.stage["deployment"]["member_force_viscous"] = f["deployment/member_force_viscous"][:]
 
     @property
     def height(self):
@@ -178,6 +179,11 @@ class Result:
 
     def strut_forces(self, stage):
         return self.stage[stage]["member_force"][:, self.strut]
+
+    def elastic_strut_forces(self):
+        """The elastic part of the deployment's strut forces (total less viscous)."""
+        s = self.stage["deployment"]
+        return (s["member_force"] - s["member_force_viscous"])[:, self.strut]
 
 
 def geometric_mean(x):
@@ -315,6 +321,56 @@ def table(header, rows):
     return "\n".join(lines) + "\n"
 
 
+def calibration_section(rows, paper_a0, fit, paper_case, literal, physical, force, results, shipped_dt):
+    """What was fitted to the paper (and to which quantity), and what follows without fitting."""
+    shipped = next(r for r in rows if r["a0"] == paper_a0)
+    default = next(r for r in rows if r["a0"] == 50e-6)
+    ratio = shipped["omega2"] / TABLE2
+    p, lit = paper_case["summary"], literal["summary"]
+    eig = p["eigen"]
+    tops = [[results["objective", dt].top_ratio("deployment", t) for dt in CONVERGENCE_DTS] for t in TIMES]
+    return f"""## Calibrated and predicted
+
+The paper leaves the cable section, the cable layout, the masses' units and the launch
+open (§8), so some of tsim's inputs are chosen to match the paper. What they were chosen to
+match cannot then count as agreement; what follows from the equations without fitting can.
+
+**Calibrated** (parameter, fitted to which quantity):
+
+| parameter | fitted to | what the fit gives | without it |
+|---|---|---|---|
+| cable section A0 = {paper_a0:.2g} m² (optimum {fit:.3g}) | Table 2, modes 1–42: least Σ ln²(ω²_tsim / ω²_Table2) (§1) | geometric-mean ratio of modes 1–42 {shipped['gm_soft']:.3f} | 50 mm²: {default['gm_soft']:.3f} |
+| masses read as `masses: paper` (2.7 and 1 kg/m³, 1000× below physical) | Table 2, modes 43–52 (strut axial, ~1e9) | geometric-mean ratio of modes 43–52 {shipped['gm_stiff']:.3f} | physical: {physical['gm_stiff']:.2g} (and {physical['gm_soft']:.2g} for modes 1–42) |
+| cable C per group from the layout's self-stress (mean 0.8), not Table 1's uniform 0.8 | Fig 2b's proportions | H = {p['formfinding']['height']:.3f} m, geometric-mean ratios {shipped['gm_soft']:.3f} / {shipped['gm_stiff']:.3f} | uniform C: H = {lit['formfinding']['height']:.3f} m, ratios {geometric_mean(np.array(lit['eigen']['omega2'])[SOFT] / TABLE2[SOFT]):.3f} / {geometric_mean(np.array(lit['eigen']['omega2'])[STIFF] / TABLE2[STIFF]):.3f} (§6) |
+| launch {force:g} N per node, half-sine, 0.05 s | that the tower deploys at every Δt, with 150 and 250 N deploying too (§3) | deployed after 8 s | ≤ 120 N ends flat (§3) |
+
+So Table 2 is calibrated against, not reproduced: A0 and the mass reading set the two
+geometric means, and C per group was chosen for the shape. Mode by mode the ratio
+tsim / Table 2 runs from {ratio.min():.2f} to {ratio.max():.2f} (an RMS factor of {np.exp(np.sqrt(shipped['cost'] / 42)):.2f}); mode 3, one
+of the paper's two damping anchors, is {ratio[2]:.2f}× off, so the paper's method on tsim's
+spectrum gives α = {eig['rayleigh_alpha']:.4g}, β = {eig['rayleigh_beta']:.4g} against Table 3's {TABLE3['alpha']}, {TABLE3['beta']} (§2). The
+deployment's times and forces (§5: time to 0.9 H, settling, strut forces) are outputs of
+this calibrated model and the chosen launch; the paper gives none of them as numbers to
+compare with.
+
+**Predicted** (follows from the equations, checked without fitting anything to it):
+
+- the numerical method's accuracy: the top-ring height converges at second order in Δt
+  (successive differences shrink {convergence_factor(tops):.2f}× per halving, §4), the total strut force
+  too, and the energy ledger closes to {results['objective', shipped_dt].ledger_error:.2g} of the launch work at the shipped Δt;
+- the deployed shape: the tower returns to its pre-fold equilibrium (shape error
+  {p['deployment']['shape_error']:.2g} of H after 8 s, §5);
+- closed forms, in the tests: regular prisms' twist and force densities
+  (tests/foundation.rs), a tensioned string's lateral frequency, Newmark's SDOF recurrence
+  and decay (tests/pipeline.rs), the rigidity counts of prisms and Snelson's X
+  (`rigidity/tests.rs`);
+- independent implementations: the paper tower's form-finding (heights and every node,
+  tests/python/test_formfinding.py), its equilibrium-matrix analysis
+  (tests/python/test_rigidity.py, §9), and OpenSees on the linear-elastic models
+  (docs/opensees_crosscheck.md).
+"""
+
+
 def spectrum_section(rows, paper_a0, fit, paper_case):
     shipped = next(r for r in rows if r["a0"] == paper_a0)
     default = next(r for r in rows if r["a0"] == 50e-6)
@@ -322,6 +378,7 @@ def spectrum_section(rows, paper_a0, fit, paper_case):
     body = table(["mode", "Table 2 ω²", f"tsim ω² (A0 = {paper_a0 * 1e6:g} mm²)", "tsim / Table 2"],
                  [(k + 1, fmt(TABLE2[k]), fmt(w2[k]), f"{w2[k] / TABLE2[k]:.2f}") for k in range(52)])
     ok = all(0.5 <= shipped[k] <= 2 for k in ("gm_soft", "gm_stiff"))
+    ratio = w2 / TABLE2
     sub = paper_case["summary"]["substitution"]
     return f"""## 1. Eigenvalues beside Table 2, and the cable cross-section A0
 
@@ -347,7 +404,12 @@ every mode equally, whatever its magnitude.
   (the soft modes {1 / (default['omega2'][SOFT] / TABLE2[SOFT]).max():.1f}–{1 / (default['omega2'][SOFT] / TABLE2[SOFT]).min():.0f}× too low).
 
 The mode-by-mode ratios are not uniform (the paper's cable layout is unknown, so tsim's
-tower is not the paper's): no single A0 matches every mode.
+tower is not the paper's): no single A0 matches every mode. They run from
+{ratio.min():.2f} (mode {ratio.argmin() + 1}) to {ratio.max():.2f} (mode {ratio.argmax() + 1}); the
+paper's two damping anchors (§2) are mode 3 at {ratio[2]:.2f}× and mode 20 at {ratio[19]:.2f}×. The
+geometric means near 1 are what the fit and the mass reading were chosen for (see
+"Calibrated and predicted" above), not an agreement mode by mode: Table 2 is calibrated
+against, not reproduced.
 
 ![Table 2 and tsim's eigenvalues; the A0 fit](img/validation/spectrum.png)
 
@@ -481,6 +543,13 @@ def dt_section(results, shipped_dt):
         verdict[variant] = max(abs(cols[f"top({t:g} s)"][k] - cols[f"top({t:g} s)"][quarter]) for t in TIMES)
         order[variant] = convergence_factor([cols[f"top({t:g} s)"] for t in TIMES])
         ledger.append([variant] + [f"{results[variant, dt].ledger_error:.2g}" for dt in CONVERGENCE_DTS])
+    total = [abs(results["objective", dt].strut_forces("deployment")).max() for dt in CONVERGENCE_DTS]
+    elastic = [abs(results["objective", dt].elastic_strut_forces()).max() for dt in CONVERGENCE_DTS]
+    limit = total[-1] + (total[-1] - total[-2]) / 3  # Richardson, second order
+    d_total, d_elastic = np.diff(total), np.diff(elastic)
+    shipped = results["objective", shipped_dt]
+    peak = shipped.stage["deployment"]["time"][abs(shipped.elastic_strut_forces()).max(axis=1).argmax()]
+    k_shipped = CONVERGENCE_DTS.index(shipped_dt)
     out.append(f"""
 The shipped Δt = {shipped_dt * 1e3:g} ms is within **{verdict['objective'] * 100:.2g} % H**
 of the Δt = {shipped_dt / 4 * 1e3:g} ms result at 0.5, 1 and 2 s (requirement: 1 % H;
@@ -496,13 +565,16 @@ over the three times and the halvings): shipped **{order['objective']:.2f}**, st
 The energy-ledger error over the launch work (largest drift of KE + SE + D − W, over W), by Δt:
 {results['objective', 0.001].ledger_error:.2g} at Table 3's Δt = 1 ms and {results['objective', shipped_dt].ledger_error:.2g} at the shipped
 {shipped_dt * 1e3:g} ms (target ≤ 1e-3). The strut forces are the members' total axial forces,
-elastic + viscous (`member_force`). Their elastic part alone converges at second order
-too, but with an error constant some 10⁴ times larger (8974, 2430, 1107, 816, 762 N for
-the largest over Δt = 2 … 0.125 ms: 49 % high at 0.5 ms): Newmark gives a rotating stiff
-strut a spurious axial rate of order Δt², which β EA/l0 ≈ 5e5 N s/m turns into an
-elastic swing that the strut's damping force cancels; the peak comes at 0.11 s, after the
-0.05 s launch, not from the launch exciting the strut axial modes (as this page said
-before the total was recorded).
+elastic + viscous (`member_force`): their largest converges to {limit:.2f} N (Richardson
+limit), {abs(total[k_shipped] / limit - 1) * 100:.1g} % off it at the shipped Δt. Their elastic part alone
+(`member_force` − `member_force_viscous`) has an error some
+{float(f"{np.median(abs(d_elastic / d_total)):.1g}"):,.0f} times larger (the median ratio of the successive differences): its largest is
+{", ".join(f"{x:.0f}" for x in elastic)} N over Δt = {", ".join(f"{dt * 1e3:g}" for dt in CONVERGENCE_DTS)} ms (ratios
+{", ".join(f"{r:.2f}" for r in d_elastic[:-1] / d_elastic[1:])}), {(elastic[k_shipped] / limit - 1) * 100:.0f} % above the total's limit at {shipped_dt * 1e3:g} ms.
+The cause is not the launch exciting strut axial modes (as this page once said): Newmark
+gives a rotating stiff strut a spurious axial rate of order Δt², which β EA/l0 ≈ 5e5 N s/m
+turns into an elastic swing that the strut's viscous force cancels, so that the total
+stays converged. The elastic peak comes at {peak:.3f} s at {shipped_dt * 1e3:g} ms, after the 0.05 s launch.
 
 {table(['variant'] + [f'Δt = {dt * 1e3:g} ms' for dt in CONVERGENCE_DTS], ledger)}
 ![Top-ring height against time for each Δt](img/validation/dt_convergence.png)
@@ -689,12 +761,13 @@ def report(runner):
     case_figures(paper_case["dir"])
 
     force = launch_force(base)
-    DOC.write_text(f"""# Validation: a documented reproduction of the paper
+    DOC.write_text(f"""# Validation: what is calibrated to the paper, and what is predicted
 
 Generated by `scripts/validation` from runs it makes of `configs/paper.yaml` (and of
 `configs/paper_literal.yaml`); every number below is measured by it. Do not edit by hand:
 rerun `scripts/validation` (a few minutes on 2 cores).
 
+{calibration_section(rows, paper_a0, fit, paper_case, literal, physical, force, results, shipped_dt)}
 {spectrum_section(rows, paper_a0, fit, paper_case)}
 {damping_section(paper_case)}
 {launch_section(launch, paper, force)}

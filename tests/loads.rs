@@ -862,18 +862,23 @@ impl Recorder for SlackLog {
 
 /// A 6 × 6 grid with steel cables (tension-only, stretched 2e-5 by their prestress) pushed
 /// down 5 cm and released with objective damping: about 2 000 slack/taut switches in
-/// 0.2 s. The deployment's end positions must converge as Δt halves (1, ½, ¼, ⅛ ms), with
-/// no step cut. A cable snapping taut is an event that makes any fixed-step integrator
-/// first order (its damping force jumps; a cable slack at a step's start is undamped until
-/// the step ends, `tsm::DampingModulus`), so first order is what is asked: the RMS
-/// differences of successive runs must fall at every halving, by at least 4 over the three
-/// (first order gives 8; measured 2.30e-4, 6.61e-5, 2.87e-5 m, a factor 8.0, since cables
-/// cannot push; 1.46e-4, 4.4e-5, 2.7e-5 m, a factor 5.5, when they could; a Δt-dependent
-/// path would not fall).
+/// 0.2 s. The deployment's end positions must converge as Δt halves (1 ms … 1/64 ms), with
+/// no step cut. Steps stop where a cable snaps taut (`Newmark::advance`), which keeps
+/// second order on the twisted prism of tests/slack.rs; here, with over 1000 switches, it
+/// does not yet (a finding, issue 30's note), so first order is what is asked: the
+/// successive differences d_k (RMS over the nodes, Δt_k against Δt_k/2) fall by a factor 2
+/// per halving (4 for second order).
+///
+/// Measured d_k: 5.40e-5, 1.78e-5, 1.05e-5, 3.12e-6, 8.53e-7, 6.85e-7 m, ratios 3.03, 1.69,
+/// 3.38, 3.65, 1.25; the order as the least-squares slope of log2 d_k against the halving
+/// count: 1.33 (standard error 0.10). Before the stops: 1.46e-4, 4.41e-5, 2.67e-5, 1.52e-5,
+/// 6.18e-6, 2.88e-6 m (slope 1.08 ± 0.06), with the cables' damping able to push. The
+/// switches are the cause: the same grid pushed 0.1 mm (no switch) gives ratios 4.01 and
+/// 3.81 before the solver's floor (~4e-9 m).
 #[test]
 fn a_grid_with_slackening_cables_converges_as_dt_halves() {
-    let ends: Vec<Vec<Vector3<f64>>> = [1e-3, 5e-4, 2.5e-4, 1.25e-4]
-        .iter()
+    let ends: Vec<Vec<Vector3<f64>>> = (0..7)
+        .map(|k| 1e-3 / f64::powi(2.0, k))
         .map(|dt| {
             let text = format!(
                 "name: slack\nmodel:\n  grid: {{ nx: 6, ny: 6 }}\nformfinding: {{}}\n\
@@ -895,9 +900,31 @@ fn a_grid_with_slackening_cables_converges_as_dt_halves() {
         (a.iter().zip(b).map(|(x, y)| (x - y).norm_squared()).sum::<f64>() / a.len() as f64).sqrt()
     };
     let diffs: Vec<f64> = ends.windows(2).map(|w| rms(&w[0], &w[1])).collect();
-    eprintln!("successive RMS differences: {diffs:?} m");
+    let ratios: Vec<f64> = diffs.windows(2).map(|w| w[0] / w[1]).collect();
+    // Least-squares slope of log2 d_k against k, and its standard error.
+    let n = diffs.len() as f64;
+    let (x_mean, y_mean) = ((n - 1.0) / 2.0, diffs.iter().map(|d| d.log2()).sum::<f64>() / n);
+    let sxx: f64 = (0..diffs.len()).map(|k| (k as f64 - x_mean).powi(2)).sum();
+    let slope: f64 = diffs
+        .iter()
+        .enumerate()
+        .map(|(k, d)| (k as f64 - x_mean) * (d.log2() - y_mean))
+        .sum::<f64>()
+        / sxx;
+    let order = -slope;
+    let rss: f64 = diffs
+        .iter()
+        .enumerate()
+        .map(|(k, d)| (d.log2() - (y_mean - order * (k as f64 - x_mean))).powi(2))
+        .sum();
+    let error = (rss / (n - 2.0) / sxx).sqrt();
+    let text: Vec<String> = diffs.iter().map(|d| format!("{d:.3e}")).collect();
+    eprintln!("successive RMS differences: {text:?} m, ratios {ratios:.2?}; fitted order {order:.3} ± {error:.3}");
+    // A Δt-dependent path would not fall at all.
     assert!(diffs.windows(2).all(|w| w[1] < w[0]), "{diffs:?}");
-    assert!(diffs[0] >= 4.0 * diffs[2], "{diffs:?}");
+    // First order is 1 (second order 2); 0.9 leaves the scatter of the single ratios
+    // (standard error of the fit 0.06–0.10) below first order, not a lower order.
+    assert!(order >= 0.9, "fitted order {order:.3} ± {error:.3}: {diffs:?}");
 }
 
 /// The reproducer of issue 29: a long table in a large sweep. Every case shares the one

@@ -167,8 +167,8 @@ fn gap(a: &Log, b: &Log, t: f64) -> (f64, f64) {
 /// successive runs (ratios):
 /// - t = 0.05 s (end of the pulse): positions 2.57e-6, 6.34e-7, 1.58e-7, 3.91e-8 m (4.05,
 ///   4.01, 4.04), forces 1.66, 0.393, 0.107, 0.026 N (4.23, 3.65, 4.08).
-/// - t = 0.2 s, after many snaps: positions 1.58e-5, 4.22e-6, 9.84e-7, 2.44e-7 m (3.74,
-///   4.29, 4.04), forces 5.44, 1.69, 0.364, 0.094 N (3.22, 4.65, 3.89).
+/// - t = 0.2 s, after many snaps: positions 1.61e-5, 3.96e-6, 9.81e-7, 2.47e-7 m (4.05,
+///   4.04, 3.96), forces 5.76, 1.35, 0.361, 0.099 N (4.25, 3.75, 3.65).
 ///
 /// Without the stops (each snapping cable undamped until its step ended) the ratios at
 /// 0.2 s were 2.66, 3.71, 2.11 (positions) and 1.20, 4.85, 0.96 (forces): first order;
