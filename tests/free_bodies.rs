@@ -207,64 +207,46 @@ outputs: {{ every: 1 }}
     }
 }
 
-/// The prism of configs/examples/prism_twist_control.yaml with no support at all, spinning
-/// and tumbling free: the equilibrium is found with the rigid motions held by a gauge (its
-/// reactions are zero), the transient runs with objective damping (β; α M damps absolute
-/// velocity, a dashpot to the ground, so it is off), and momentum is conserved.
-///
-/// Linear momentum: every internal force, elastic and viscous, is a pair on the member's
-/// ends, and Newmark's velocity update sums them to zero: conserved to round-off.
-/// Angular momentum: the trapezoidal rule evaluates the central forces at the step's two
-/// ends, and Σ x̄ × (f_n + f_{n+1}) over the step's mean positions x̄ is not zero (Simo &
-/// Tarnow 1992 show it for nonlinear elastodynamics): it is conserved to O(Δt²), not
-/// exactly; measured here, it converges at second order as Δt halves.
-#[test]
-fn a_free_floating_prism_conserves_momentum() {
+/// The prism of configs/examples/prism_twist_control.yaml with every support removed, its
+/// nodes started in the rigid motion `drift` + `omega` × (x − centroid) from the
+/// equilibrium, damped by β alone; the transient `spin` at `dt` for 1 s.
+fn free_prism_case(dt: f64, omega: Vector3<f64>, drift: Vector3<f64>) -> String {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/examples/prism_twist_control.yaml");
     let text = std::fs::read_to_string(path).unwrap();
-    let model: String = text
-        .lines()
-        .skip_while(|l| !l.starts_with("model:"))
-        .take_while(|l| !l.starts_with("# Materials"))
-        .map(|l| {
-            let l = ["fix: [x, y, z]", "fix: [y, z]", "fix: [z]"]
-                .iter()
-                .fold(l.to_string(), |l, f| l.replace(f, "fix: []"));
-            format!("{l}\n")
+    let section = |from: &str, to: &str| -> String {
+        (text.lines())
+            .skip_while(|l| !l.starts_with(from))
+            .take_while(|l| !l.starts_with(to))
+            .map(|l| format!("{l}\n"))
+            .collect()
+    };
+    let model = ["fix: [x, y, z]", "fix: [y, z]", "fix: [z]"]
+        .iter()
+        .fold(section("model:", "# Materials"), |m, f| m.replace(f, "fix: []"));
+    assert!(!model.contains("fix: [x") && !model.contains("fix: [y") && !model.contains("fix: [z"));
+    let materials = section("materials:", "substitution:");
+    // Velocities of a rigid motion about the nominal centroid; the equilibrium moves the
+    // nodes by round-off, so the motion is rigid to that.
+    let nodes = ["b0", "b1", "b2", "t0", "t1", "t2"];
+    let xyz = |id: &str| {
+        let line = model.lines().find(|l| l.contains(&format!("id: {id},"))).unwrap();
+        let inner = &line[line.find("xyz: [").unwrap() + 6..];
+        let v: Vec<f64> = inner[..inner.find(']').unwrap()]
+            .split(',')
+            .map(|s| s.trim().parse().unwrap())
+            .collect();
+        Vector3::new(v[0], v[1], v[2])
+    };
+    let centroid = nodes.iter().map(|n| xyz(n)).sum::<Vector3<f64>>() / 6.0;
+    let velocity: String = nodes
+        .iter()
+        .map(|n| {
+            let v = drift + omega.cross(&(xyz(n) - centroid));
+            format!("          - {{ nodes: [{n}], value: [{}, {}, {}] }}\n", v.x, v.y, v.z)
         })
         .collect();
-    assert!(!model.contains("fix: [x") && !model.contains("fix: [y") && !model.contains("fix: [z"));
-    let materials: String = text
-        .lines()
-        .skip_while(|l| !l.starts_with("materials:"))
-        .take_while(|l| !l.starts_with("substitution:"))
-        .map(|l| format!("{l}\n"))
-        .collect();
-    let omega = Vector3::new(0.8, -0.5, 3.0);
-    let drift = Vector3::new(0.2, 0.0, -0.1);
-    let case = |dt: f64| {
-        // Velocities of a rigid motion about the nominal centroid; the equilibrium moves the
-        // nodes by round-off, so the motion is rigid to that.
-        let nodes = ["b0", "b1", "b2", "t0", "t1", "t2"];
-        let xyz = |id: &str| {
-            let line = model.lines().find(|l| l.contains(&format!("id: {id},"))).unwrap();
-            let inner = &line[line.find("xyz: [").unwrap() + 6..];
-            let v: Vec<f64> = inner[..inner.find(']').unwrap()]
-                .split(',')
-                .map(|s| s.trim().parse().unwrap())
-                .collect();
-            Vector3::new(v[0], v[1], v[2])
-        };
-        let centroid = nodes.iter().map(|n| xyz(n)).sum::<Vector3<f64>>() / 6.0;
-        let velocity: String = nodes
-            .iter()
-            .map(|n| {
-                let v = drift + omega.cross(&(xyz(n) - centroid));
-                format!("          - {{ nodes: [{n}], value: [{}, {}, {}] }}\n", v.x, v.y, v.z)
-            })
-            .collect();
-        format!(
-            "name: free_prism
+    format!(
+        "name: free_prism
 {model}{materials}substitution: {{ strut: steel_tube, cable: steel_rod }}
 point_masses:
   - {{ groups: [top], mass: 20.0 }}
@@ -280,24 +262,41 @@ stages:
       initial:
         velocity:
 {velocity}"
-        )
-    };
-    let momenta = |log: &Log| -> Vec<(Vector3<f64>, Vector3<f64>)> {
-        (log.frames.iter())
-            .map(|f| {
-                let mut p = Vector3::zeros();
-                let mut l = Vector3::zeros();
-                for ((x, v), m) in f.positions.iter().zip(&f.velocities).zip(&log.masses) {
-                    p += v * *m;
-                    l += x.cross(&(v * *m));
-                }
-                (p, l)
-            })
-            .collect()
-    };
+    )
+}
+
+/// Linear and angular momentum (about the origin) of every recorded frame.
+fn momenta(log: &Log) -> Vec<(Vector3<f64>, Vector3<f64>)> {
+    (log.frames.iter())
+        .map(|f| {
+            let mut p = Vector3::zeros();
+            let mut l = Vector3::zeros();
+            for ((x, v), m) in f.positions.iter().zip(&f.velocities).zip(&log.masses) {
+                p += v * *m;
+                l += x.cross(&(v * *m));
+            }
+            (p, l)
+        })
+        .collect()
+}
+
+/// The free prism ([`free_prism_case`]) spinning and tumbling: the equilibrium is found with
+/// the rigid motions held by a gauge (its reactions are zero), the transient runs with
+/// objective damping (β; α M damps absolute velocity, a dashpot to the ground, so it is
+/// off), and momentum is conserved.
+///
+/// Linear momentum: every internal force, elastic and viscous, is a pair on the member's
+/// ends, and Newmark's velocity update sums them to zero: conserved to round-off.
+/// Angular momentum: the trapezoidal rule evaluates the central forces at the step's two
+/// ends, and Σ x̄ × (f_n + f_{n+1}) over the step's mean positions x̄ is not zero (Simo &
+/// Tarnow 1992 show it for nonlinear elastodynamics): it is conserved to O(Δt²), not
+/// exactly; measured here, it converges at second order as Δt halves.
+#[test]
+fn a_free_floating_prism_conserves_momentum() {
+    let (omega, drift) = (Vector3::new(0.8, -0.5, 3.0), Vector3::new(0.2, 0.0, -0.1));
     let mut drifts = Vec::new();
     for dt in [4e-3, 2e-3, 1e-3, 5e-4] {
-        let (log, summary) = run_summarized(&case(dt), "spin");
+        let (log, summary) = run_summarized(&free_prism_case(dt, omega, drift), "spin");
         let eq = summary.equilibrium.as_ref().unwrap();
         // The gauge's reactions: the self-stress is balanced, so they are what the free
         // directions' residual leaves, within Newton's force tolerance (1e-10 of the
@@ -309,29 +308,26 @@ stages:
             eq.max_reaction
         );
         // Stable on the deformations: the gauge takes the six zero-stiffness rigid motions out.
-        assert!(
-            summary.substitution.stable,
-            "lowest stiffness {:e} N/m",
-            summary.substitution.lowest_stiffness
-        );
+        let sub = &summary.substitution;
+        assert!(sub.stable, "lowest stiffness {:e} N/m", sub.lowest_stiffness);
         let m = momenta(&log);
         let (p0, l0) = m[0];
         let dp = m.iter().map(|(p, _)| (p - p0).norm()).fold(0.0, f64::max) / p0.norm();
         let dl = m.iter().map(|(_, l)| (l - l0).norm()).fold(0.0, f64::max) / l0.norm();
-        let forces = log.frames.iter().flat_map(|f| f.forces.iter()).fold(0.0_f64, |a, f| a.max(f.abs()));
         println!(
-            "dt {dt:e}: linear momentum {:.3e} (rel. drift {dp:.1e}), angular {:.3e} (rel. drift {dl:.1e}); largest |N| {forces:.1} N",
+            "dt {dt:e}: linear momentum {:.3e} (rel. drift {dp:.1e}), angular {:.3e} (rel. drift {dl:.1e})",
             p0.norm(),
             l0.norm()
         );
-        // Linear momentum: round-off of a sum of pair forces over 1000 steps, ~1e-13.
+        // Linear momentum: round-off of a sum of pair forces over up to 2000 steps
+        // (measured 2.8e-12 ... 3.9e-11, growing with the step count).
         assert!(dp <= 1e-10, "dt {dt}: linear momentum drifts {dp:e}");
         drifts.push(dl);
     }
     let ratios: Vec<f64> = drifts.windows(2).map(|w| w[0] / w[1]).collect();
     println!("angular momentum drift ratios as Δt halves: {ratios:?}");
-    // Second order: the drift quarters per halving; 3.5 leaves room for the pre-asymptotic
-    // first halving only where the drift is already small (each ratio is asserted).
+    // Second order: the drift quarters per halving (measured 4.6, 4.8, 4.5); 3.5 leaves
+    // room for scatter, not for first order (2).
     for r in &ratios {
         assert!(*r >= 3.5, "angular momentum drift ratios {ratios:?}: not second order");
     }

@@ -33,9 +33,16 @@ pub fn bisect_reaching<R, E>(
     step: &mut dyn FnMut(f64, f64) -> Result<(R, f64), E>,
     merge: &dyn Fn(R, R) -> R,
 ) -> Result<(R, bool), E> {
-    let mut pending = vec![(from, to, max_cuts)];
-    let mut merged: Option<R> = None;
-    let mut cut = false;
+    // The whole step first, outside the stack: the common case allocates nothing.
+    let (mut pending, mut merged, mut cut) = match step(from, to) {
+        Ok((r, reached)) if reached >= to => return Ok((r, false)),
+        Ok((r, reached)) => (vec![(reached, to, max_cuts)], Some(r), false),
+        Err(e) if max_cuts == 0 => return Err(e),
+        Err(_) => {
+            let mid = 0.5 * (from + to);
+            (vec![(mid, to, max_cuts - 1), (from, mid, max_cuts - 1)], None, true)
+        }
+    };
     while let Some((a, b, cuts)) = pending.pop() {
         match step(a, b) {
             Ok((r, reached)) => {
