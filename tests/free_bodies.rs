@@ -10,7 +10,7 @@ use tsim::pipeline::{run_case, CaseSummary};
 use tsim::record::{Constraints, EigenRecord, Frame, ModelRecord, RecordResult, Recorder, Stage};
 
 /// What a case records: the lumped masses, the eigenvalues, each frame of the stage
-/// `stage` (time, positions, velocities, member forces).
+/// `stage` (time, positions, velocities).
 #[derive(Default)]
 struct Log {
     stage: &'static str,
@@ -24,7 +24,6 @@ struct Logged {
     time: f64,
     positions: Vec<Vector3<f64>>,
     velocities: Vec<Vector3<f64>>,
-    forces: Vec<f64>,
 }
 
 impl Recorder for Log {
@@ -46,7 +45,6 @@ impl Recorder for Log {
                 time: f.time,
                 positions: f.positions.to_vec(),
                 velocities: f.velocities.expect("a transient frame has velocities").to_vec(),
-                forces: f.forces.to_vec(),
             });
         }
         Ok(())
