@@ -683,6 +683,47 @@ fn objective_damping_ignores_rigid_motion() {
     assert_eq!(names, ["elastic", "ogden_cord"].into_iter().collect());
 }
 
+/// What a user reads of the damping, each member's recorded viscous force
+/// (`member_force_viscous`, from `member_axial_damping`), is zero for a rigid motion too:
+/// a translation with a rotation of the unsupported paper tower at its equilibrium.
+#[test]
+fn a_rigid_motion_records_no_viscous_member_force() {
+    use tsim::tsm::{member_axial_damping, MemberDamping};
+    let eq = real_equilibrium(&paper_config());
+    let dofs = DofMap::new(&eq.model, &[]);
+    let asm = Assembly::new(&eq.model, &eq.elements, &dofs, eq.positions.clone());
+    let centre = eq.positions.iter().sum::<Vector3<f64>>() / eq.positions.len() as f64;
+    let (omega, t, beta) = (Vector3::new(-0.9, 0.2, 1.6), Vector3::new(0.1, 3.0, -2.0), 0.0052);
+    let velocities: Vec<Vector3<f64>> = eq.positions.iter().map(|x| t + omega.cross(&(x - centre))).collect();
+    let moduli = damping_moduli_at(&eq, &asm.states);
+    let damping = MemberDamping::Objective {
+        moduli: &moduli,
+        beta,
+        rest_rate: &[],
+    };
+    let mut axial = vec![0.0; asm.states.len()];
+    member_axial_damping(&eq.model, &asm.states, damping, &velocities, &mut axial);
+    let largest = axial.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
+    // The scale of β k |w| for the motion's largest relative velocity: what a member's
+    // force would be if its extension rate were read wrong; zero to round-off (1e-12).
+    let k_max = asm.states.iter().map(|s| s.stiffness.abs()).fold(0.0, f64::max);
+    let scale = beta * k_max * omega.norm() * eq.model.size();
+    assert!(
+        largest <= 1e-12 * scale,
+        "viscous member force of a rigid motion: {largest:e} N (scale {scale:e} N)"
+    );
+    // The same velocities with one node moved 1 mm/s along a member: not rigid, and read.
+    let mut strained = velocities.clone();
+    let [a, b] = eq.model.members[0].nodes;
+    strained[b] += (eq.positions[b] - eq.positions[a]).normalize() * 1e-3;
+    member_axial_damping(&eq.model, &asm.states, damping, &strained, &mut axial);
+    assert!(
+        axial[0].abs() > 1e6 * largest.max(1e-300),
+        "a stretching member's viscous force {:e} N",
+        axial[0]
+    );
+}
+
 // ---------------------------------------------------------------------------------------
 // 5–7. The paper pipeline: free vibration, folding, deployment (run once)
 // ---------------------------------------------------------------------------------------
