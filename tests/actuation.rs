@@ -9,7 +9,7 @@ mod common;
 
 use common::assert_field_errors;
 use nalgebra::Vector3;
-use tsim::config::{parse_case, CaseConfig};
+use tsim::config::{parse_case, CaseConfig, TimeStep};
 use tsim::model::Model;
 use tsim::pipeline::run_case;
 use tsim::record::{Constraints, Energy, Frame, RecordResult, Recorder};
@@ -19,7 +19,7 @@ fn config(dt: f64, duration: f64) -> CaseConfig {
     let text = std::fs::read_to_string(path).unwrap();
     let mut cfg = parse_case(&text, path).unwrap_or_else(|e| panic!("{e}"));
     let fv = cfg.free_vibration.as_mut().unwrap();
-    (fv.dt, fv.duration) = (dt, duration);
+    (fv.dt, fv.duration) = (TimeStep::Fixed(dt), duration);
     cfg.outputs.every = 1;
     cfg
 }

@@ -8,7 +8,7 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
-use tsim::config::{parse_case, GroundMotionSpec, NodalForceSpec, TimeFunctionSpec};
+use tsim::config::{parse_case, GroundMotionSpec, NodalForceSpec, TimeFunctionSpec, TimeStep};
 use tsim::pipeline::run_case;
 use tsim::record::{Constraints, Frame, RecordResult, Recorder, Stage};
 use tsim::solve::LinearSolverChoice;
@@ -78,7 +78,7 @@ fn step_allocations(solver: LinearSolverChoice, loaded: bool) -> Vec<u64> {
     cfg.free_vibration = None;
     let deployment = cfg.deployment.as_mut().unwrap();
     // 300 steps of 1 ms: the launch (0.05 s) covers the first 50, whatever paper.yaml's Δt.
-    (deployment.duration, deployment.dt) = (0.3, 0.001);
+    (deployment.duration, deployment.dt) = (0.3, TimeStep::Fixed(0.001));
     if loaded {
         let table = TimeFunctionSpec::table(vec![[0.0, 0.0], [0.1, 1.0], [0.2, -1.0], [0.25, 0.0]]);
         let force = |force, time| NodalForceSpec {

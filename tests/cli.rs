@@ -288,6 +288,23 @@ fn parser_line(text: &str, needle: &str) -> String {
     format!(":{}:", text.lines().position(|l| l.contains(needle)).expect("needle in text") + 1)
 }
 
+/// `dt` is a number or `auto`: a word is told so at its line, and `dt: auto`'s settings are
+/// checked (a tolerance outside (0, 1)).
+#[test]
+fn a_time_step_is_a_number_or_auto() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let (out, path) = bad_config(&good.replace("duration: 0.1\n", "duration: 0.1\n  dt: fast\n"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(&format!("{}:", path.display())) && err.contains("or `auto`"), "{err}");
+    let text = good.replace("duration: 0.1\n", "duration: 0.1\n  dt: auto\n  dt_tolerance: 2\n");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&at(&path, &text, "dt_tolerance: 2")) && err.contains("`deployment.dt_tolerance`: is 2; must lie in (0, 1)"),
+        "{err}"
+    );
+}
+
 #[test]
 fn every_bad_value_is_reported_at_its_line() {
     let good = std::fs::read_to_string(SWEEP).unwrap();

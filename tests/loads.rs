@@ -16,7 +16,7 @@ use nalgebra::{Matrix2, Vector2, Vector3};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::sync::Arc;
-use tsim::config::{parse_case, CaseConfig, NodalForceSpec, TimeFunctionSpec};
+use tsim::config::{parse_case, CaseConfig, NodalForceSpec, TimeFunctionSpec, TimeStep};
 use tsim::dynamics::{DampingTangent, GroundMotion, Loads, NewmarkParams, NodalLoad, Rayleigh, TimeFunction};
 use tsim::law::{ForceLaw, LinearElastic};
 use tsim::model::{Member, MemberKind, Model, Node};
@@ -354,7 +354,7 @@ fn ground_motion_on_a_prism_equals_nodal_inertia_loads() {
     let mut cfg = parse_case(text, "configs/prism3.yaml").unwrap();
     cfg.eigen = None;
     let fv = cfg.free_vibration.as_mut().unwrap();
-    (fv.load, fv.duration, fv.dt, fv.damped) = (None, 0.1, 0.0005, false);
+    (fv.load, fv.duration, fv.dt, fv.damped) = (None, 0.1, TimeStep::Fixed(0.0005), false);
     let time = TimeFunctionSpec::table(vec![[0.0, 0.0], [0.02, 1.0], [0.04, -1.0], [0.06, 0.0]]);
     let ag = [2.0, 0.0, -1.0];
     fv.ground_motion = Some(tsim::config::GroundMotionSpec {

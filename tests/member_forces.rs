@@ -8,7 +8,7 @@
 mod common;
 
 use nalgebra::Vector3;
-use tsim::config::{parse_case, CaseConfig};
+use tsim::config::{parse_case, CaseConfig, TimeStep};
 use tsim::pipeline::run_case;
 use tsim::record::{Constraints, Frame, ModelRecord, RecordResult, Recorder, Stage};
 
@@ -64,7 +64,7 @@ fn paper(dt: f64, duration: f64) -> CaseConfig {
     let mut cfg = parse_case(&std::fs::read_to_string(path).unwrap(), path).unwrap();
     cfg.free_vibration = None;
     let deployment = cfg.deployment.as_mut().unwrap();
-    (deployment.dt, deployment.duration) = (dt, duration);
+    (deployment.dt, deployment.duration) = (TimeStep::Fixed(dt), duration);
     cfg
 }
 

@@ -122,6 +122,7 @@ fn try_newmark_sdof(
             gamma: 0.5,
             dt,
             max_cuts: 0,
+            auto: None,
         },
         damping: Damping {
             rayleigh,
@@ -1120,7 +1121,7 @@ fn deployment_returns_to_prefold_shape() {
         t.max_kinetic
     );
     let spec = run.cfg.deployment.as_ref().expect("paper.yaml deploys");
-    let steps = (spec.duration / spec.dt).round() as usize;
+    let steps = (spec.duration / spec.fixed_dt().unwrap()).round() as usize;
     assert_eq!(t.steps, steps, "8 s at the config's Δt");
     assert!(t.max_kinetic > 0.0);
     assert!(
@@ -1204,7 +1205,11 @@ fn check_recorded_ledger(frames: &[(f64, Energy)], launch: f64, rise_tol: f64, m
 fn paper_deployment(tangent: TangentUpdate, tol: f64, launch: f64) -> (CaseSummary, Vec<Vec<Vector3<f64>>>) {
     let mut c = paper_config();
     assert_eq!(c.newton.tangent, TangentUpdate::Auto, "paper.yaml uses the default");
-    assert_eq!(c.deployment.as_ref().expect("paper.yaml deploys").dt, 0.0005, "the shipped Δt");
+    assert_eq!(
+        c.deployment.as_ref().expect("paper.yaml deploys").fixed_dt(),
+        Some(0.0005),
+        "the shipped Δt"
+    );
     c.free_vibration = None;
     c.newton.tangent = tangent;
     c.newton.force_tolerance = tol;
@@ -1283,7 +1288,10 @@ fn deployment_with_tangent_reuse_follows_full_newton() {
         .fold(0.0, f64::max);
     let height = reuse.formfinding.as_ref().expect("the paper case form-finds").height;
     let cfg = paper_config();
-    let (dt, length) = (cfg.deployment.as_ref().unwrap().dt, cfg.model.build().unwrap().size());
+    let (dt, length) = (
+        cfg.deployment.as_ref().unwrap().fixed_dt().unwrap(),
+        cfg.model.build().unwrap().size(),
+    );
     let all = 0..reused.len();
     let moving = 0..(2.0 / dt) as usize;
     let (gap, gap_moving, gap_tight) = (

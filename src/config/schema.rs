@@ -2,7 +2,7 @@ use super::kinds::HoldSpec;
 use super::limits::LimitSpec;
 use super::loading::{six, ten, ActuationSpec, AssignSpec, GroundMotionSpec, InitialSpec, NodalForceSpec, PointMassSpec, StaticSpec};
 use super::materials::MaterialSpec;
-use crate::dynamics::{DampingTangent, LoadProfile, NewmarkParams};
+use crate::dynamics::{AutoStep, DampingTangent, LoadProfile, NewmarkParams};
 use crate::model::generate::TowerSpec;
 use crate::model::grid::GridSpec;
 use crate::model::MemberKind;
@@ -381,9 +381,21 @@ fn step_profile() -> LoadProfile {
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TransientSpec {
-    /// Δt [s].
+    /// Δt [s], or `auto`: each step sized by a local error estimate on positions and
+    /// member forces (`dt_tolerance`, `dt_max`, `dt_min`).
     #[serde(default = "default_dt")]
-    pub dt: f64,
+    pub dt: TimeStep,
+    /// With `dt: auto`: the local error a step may make, in node positions relative to
+    /// the structure's size and in member forces relative to the largest so far.
+    #[serde(default = "default_dt_tolerance")]
+    pub dt_tolerance: f64,
+    /// With `dt: auto`: the largest step [s] (default: duration/100).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dt_max: Option<f64>,
+    /// With `dt: auto`: the smallest step [s] (default: duration · 1e-8); a step this
+    /// short is taken whatever its error, and the summary counts it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dt_min: Option<f64>,
     /// [s]
     pub duration: f64,
     #[serde(default = "default_beta")]
@@ -423,20 +435,93 @@ pub struct TransientSpec {
     pub max_cuts: u32,
 }
 
+/// A transient's time step: a fixed Δt [s], or `auto`.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, schemars::JsonSchema)]
+#[serde(untagged)]
+pub enum TimeStep {
+    /// Steps of this size [s].
+    Fixed(f64),
+    /// Steps sized by the local error estimate.
+    Auto(AutoWord),
+}
+
+/// A number, or the word `auto`; anything else is told what is expected (serde's untagged
+/// enums say only "did not match any variant").
+impl<'de> serde::Deserialize<'de> for TimeStep {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = TimeStep;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a time step in seconds (a number, e.g. 0.0005) or `auto`")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<TimeStep, E> {
+                Ok(TimeStep::Fixed(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<TimeStep, E> {
+                Ok(TimeStep::Fixed(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<TimeStep, E> {
+                Ok(TimeStep::Fixed(v as f64))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<TimeStep, E> {
+                match v {
+                    "auto" => Ok(TimeStep::Auto(AutoWord::Auto)),
+                    _ => Err(E::invalid_value(serde::de::Unexpected::Str(v), &self)),
+                }
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
+}
+
+/// The word `auto`.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum AutoWord {
+    /// `dt: auto`.
+    Auto,
+}
+
 impl TransientSpec {
     /// The integrator's parameters.
     pub fn newmark(&self) -> NewmarkParams {
+        let defaults = NewmarkParams::default();
         NewmarkParams {
             beta: self.newmark_beta,
             gamma: self.newmark_gamma,
-            dt: self.dt,
+            dt: self.fixed_dt().unwrap_or(defaults.dt),
             max_cuts: self.max_cuts,
+            auto: self.fixed_dt().is_none().then(|| self.auto_step()),
+        }
+    }
+
+    /// Δt where it is fixed.
+    pub fn fixed_dt(&self) -> Option<f64> {
+        match self.dt {
+            TimeStep::Fixed(dt) => Some(dt),
+            TimeStep::Auto(_) => None,
+        }
+    }
+
+    /// `dt: auto`'s settings, with their defaults; the first step tried is the smallest
+    /// times 100 (it doubles each step its error allows).
+    pub fn auto_step(&self) -> AutoStep {
+        let min = self.dt_min.unwrap_or(1e-8 * self.duration);
+        AutoStep {
+            tolerance: self.dt_tolerance,
+            min,
+            max: self.dt_max.unwrap_or(0.01 * self.duration),
+            initial: 100.0 * min,
         }
     }
 }
 
-fn default_dt() -> f64 {
-    NewmarkParams::default().dt
+fn default_dt() -> TimeStep {
+    TimeStep::Fixed(NewmarkParams::default().dt)
+}
+fn default_dt_tolerance() -> f64 {
+    1e-4
 }
 fn default_beta() -> f64 {
     NewmarkParams::default().beta

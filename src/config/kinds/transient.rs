@@ -74,8 +74,27 @@ impl StageSpec for TransientSpec {
     }
 
     fn steps(&self, every: usize) -> Option<Steps> {
-        let steps = (self.duration / self.dt).round();
-        let how = format!("duration {} s / dt {} s = {steps} steps, every {every}", self.duration, self.dt);
+        let (steps, how) = match self.fixed_dt() {
+            Some(dt) => {
+                let steps = (self.duration / dt).round();
+                (
+                    steps,
+                    format!("duration {} s / dt {dt} s = {steps} steps, every {every}", self.duration),
+                )
+            }
+            // Not known before the run: at least duration/dt_max.
+            None => {
+                let max = self.auto_step().max;
+                let steps = (self.duration / max).ceil();
+                (
+                    steps,
+                    format!(
+                        "dt: auto, at least duration {} s / dt_max {max} s = {steps} steps, every {every}",
+                        self.duration
+                    ),
+                )
+            }
+        };
         Some(Steps {
             steps,
             key: "duration",
@@ -86,22 +105,10 @@ impl StageSpec for TransientSpec {
 }
 
 pub(in crate::config) fn check_transient(name: &str, t: &TransientSpec, model: Option<&Model>, p: &mut Problems) {
-    p.positive(&format!("{name}.dt"), t.dt);
     p.positive(&format!("{name}.duration"), t.duration);
-    check_steps(
-        &format!("{name}.duration"),
-        t.duration / t.dt,
-        &format!("{:e} s at Δt = {:e} s is", t.duration, t.dt),
-        p,
-    );
-    if t.dt > t.duration {
-        p.add(
-            format!("{name}.dt"),
-            format!(
-                "{} s is longer than the duration {} s: the stage would take no step",
-                t.dt, t.duration
-            ),
-        );
+    match t.fixed_dt() {
+        Some(dt) => check_fixed_dt(name, dt, t.duration, p),
+        None => check_auto_dt(name, t, p),
     }
     check_cuts(&format!("{name}.max_cuts"), t.max_cuts, p);
     p.within(&format!("{name}.newmark_gamma"), t.newmark_gamma, 0.0, 1.0, "(0, 1)");
@@ -114,6 +121,57 @@ pub(in crate::config) fn check_transient(name: &str, t: &TransientSpec, model: O
             }
         }
     }
+}
+
+/// A fixed Δt: positive, shorter than the stage, not too many steps.
+fn check_fixed_dt(name: &str, dt: f64, duration: f64, p: &mut Problems) {
+    p.positive(&format!("{name}.dt"), dt);
+    check_steps(
+        &format!("{name}.duration"),
+        duration / dt,
+        &format!("{duration:e} s at Δt = {dt:e} s is"),
+        p,
+    );
+    if dt > duration {
+        p.add(
+            format!("{name}.dt"),
+            format!("{dt} s is longer than the duration {duration} s: the stage would take no step"),
+        );
+    }
+}
+
+/// `dt: auto`: a tolerance in (0, 1), 0 < dt_min ≤ dt_max ≤ duration, and a Newmark β
+/// whose error constant β − 1/6 is not zero (the estimate would be blind).
+fn check_auto_dt(name: &str, t: &TransientSpec, p: &mut Problems) {
+    p.within(&format!("{name}.dt_tolerance"), t.dt_tolerance, 0.0, 1.0, "(0, 1)");
+    if let Some(max) = t.dt_max {
+        p.positive(&format!("{name}.dt_max"), max);
+    }
+    if let Some(min) = t.dt_min {
+        p.positive(&format!("{name}.dt_min"), min);
+    }
+    let auto = t.auto_step();
+    if auto.min > auto.max || auto.max > t.duration {
+        p.add(
+            format!("{name}.dt_max"),
+            format!(
+                "dt_min {} s, dt_max {} s and duration {} s must be in increasing order",
+                auto.min, auto.max, t.duration
+            ),
+        );
+    }
+    if (t.newmark_beta - 1.0 / 6.0).abs() < 1e-3 {
+        p.add(
+            format!("{name}.newmark_beta"),
+            "is 1/6, where Newmark's local error constant β − 1/6 vanishes and `dt: auto` cannot estimate the error; give a fixed dt or another β".to_string(),
+        );
+    }
+    check_steps(
+        &format!("{name}.duration"),
+        t.duration / auto.max,
+        &format!("{:e} s at dt_max = {:e} s is at least", t.duration, auto.max),
+        p,
+    );
 }
 
 /// The loads, ground motion and initial conditions of a transient: every node set names

@@ -76,6 +76,33 @@ impl TimeFunction {
         }
     }
 
+    /// f just before t, its left limit: differs from [`at`](Self::at) only where f jumps at t
+    /// (a step's or a harmonic's end), and is the value a time step ending at t integrates
+    /// with when it ends there exactly (`dt: auto` steps end on every jump).
+    pub fn before(&self, t: f64) -> f64 {
+        match *self {
+            TimeFunction::Step { duration } => f64::from(t > 0.0 && t <= duration),
+            TimeFunction::Harmonic {
+                frequency,
+                phase,
+                duration: Some(d),
+            } if t > 0.0 && t <= d => (2.0 * std::f64::consts::PI * frequency * t + phase).sin(),
+            _ => self.at(t),
+        }
+    }
+
+    /// The times after 0 where f has a kink or a jump, into `out` (a table: each of its
+    /// points): where a step of `dt: auto` ends, so that no step straddles one.
+    pub fn breakpoints(&self, out: &mut Vec<f64>) {
+        match *self {
+            TimeFunction::Constant => {}
+            TimeFunction::Step { duration } | TimeFunction::Ramp { duration } | TimeFunction::HalfSine { duration } => out.push(duration),
+            TimeFunction::Harmonic { duration, .. } => out.extend(duration),
+            TimeFunction::Table(ref points) => out.extend(points.iter().map(|p| p[0])),
+        }
+        out.retain(|&t| t > 0.0);
+    }
+
     /// df/dt at t, from the left where f has a kink or a jump (the rate at the end of a
     /// time step that ends at t); a jump's impulse is not counted (a step function's rate
     /// is 0).
@@ -192,14 +219,19 @@ impl NodalLoad {
         NodalLoad { nodes, force, time }
     }
 
-    /// The load's factor f(t) at stage time `t` [s].
-    pub fn factor(&self, t: f64) -> f64 {
-        self.time.at(t)
+    /// The load's factor f(t) at stage time `t` [s]; `before`: its left limit there.
+    pub fn factor(&self, t: f64, before: bool) -> f64 {
+        if before {
+            self.time.before(t)
+        } else {
+            self.time.at(t)
+        }
     }
 
-    /// Adds the load at time t to a force vector on the free DOFs of `dofs`.
-    pub fn add_free(&self, t: f64, dofs: &DofMap, f: &mut [f64]) {
-        let s = self.factor(t);
+    /// Adds the load at time t (`before`: its left limit) to a force vector on the free
+    /// DOFs of `dofs`.
+    pub fn add_free(&self, t: f64, before: bool, dofs: &DofMap, f: &mut [f64]) {
+        let s = self.factor(t, before);
         if s == 0.0 {
             return;
         }
@@ -240,19 +272,34 @@ impl Loads {
         self.nodal.iter().map(|l| l.time.end()).chain(ground).fold(0.0, f64::max)
     }
 
-    /// Adds the nodal loads at time `t` to a force per node [N] (allocates nothing).
-    pub fn add_nodal(&self, t: f64, f: &mut [Vector3<f64>]) {
+    /// Adds the nodal loads at time `t` (`before`: their left limits) to a force per node
+    /// [N] (allocates nothing).
+    pub fn add_nodal(&self, t: f64, before: bool, f: &mut [Vector3<f64>]) {
         for load in &self.nodal {
-            let s = load.factor(t);
+            let s = load.factor(t, before);
             if s != 0.0 {
                 load.nodes.iter().for_each(|&n| f[n] += load.force * s);
             }
         }
     }
 
-    /// The ground acceleration a_g(t) [m/s²] (zero without ground motion).
-    pub fn ground_acceleration(&self, t: f64) -> Vector3<f64> {
-        self.ground.as_ref().map_or(Vector3::zeros(), |g| g.acceleration * g.time.at(t))
+    /// The ground acceleration a_g(t) [m/s²] (zero without ground motion); `before`: its
+    /// left limit.
+    pub fn ground_acceleration(&self, t: f64, before: bool) -> Vector3<f64> {
+        let factor = |f: &TimeFunction| if before { f.before(t) } else { f.at(t) };
+        self.ground.as_ref().map_or(Vector3::zeros(), |g| g.acceleration * factor(&g.time))
+    }
+
+    /// Every time after 0 where a load's time function has a kink or a jump, sorted, each once.
+    pub fn breakpoints(&self) -> Vec<f64> {
+        let mut out = Vec::new();
+        let ground = self.ground.iter().map(|g| &g.time);
+        for f in self.nodal.iter().map(|l| &l.time).chain(ground) {
+            f.breakpoints(&mut out);
+        }
+        out.sort_by(f64::total_cmp);
+        out.dedup();
+        out
     }
 
     /// Whether some load is still on after [`end`](Self::end).
@@ -316,18 +363,19 @@ impl FreeLoads {
         }
     }
 
-    /// Writes f(t) on the free DOFs of `dofs` into `f`; allocates nothing.
-    pub fn at(&self, t: f64, dofs: &DofMap, f: &mut [f64]) {
+    /// Writes f(t) on the free DOFs of `dofs` into `f` (`before`: its left limit, where a
+    /// load jumps at t); allocates nothing.
+    pub fn at(&self, t: f64, before: bool, dofs: &DofMap, f: &mut [f64]) {
         if self.has_constant {
             f.copy_from_slice(&self.constant);
         } else {
             f.fill(0.0);
         }
         for load in &self.nodal {
-            load.add_free(t, dofs, f);
+            load.add_free(t, before, dofs, f);
         }
         if let Some((inertia, time)) = &self.ground {
-            let s = time.at(t);
+            let s = if before { time.before(t) } else { time.at(t) };
             if s != 0.0 {
                 for (fi, mi) in f.iter_mut().zip(inertia) {
                     *fi += s * mi;
@@ -365,6 +413,37 @@ mod tests {
         );
         assert_eq!((table.end(), table.final_value()), (3.0, -1.0));
         assert_eq!((TimeFunction::Constant.end(), TimeFunction::Constant.final_value()), (0.0, 1.0));
+    }
+
+    /// Left limits differ from the values only at jumps; breakpoints are the kinks and
+    /// jumps after 0, a table's every point.
+    #[test]
+    fn left_limits_and_breakpoints() {
+        let step = TimeFunction::Step { duration: 0.5 };
+        assert_eq!(
+            (step.before(0.5), step.at(0.5), step.before(0.6), step.before(0.2)),
+            (1.0, 0.0, 0.0, 1.0)
+        );
+        let h = TimeFunction::Harmonic {
+            frequency: 2.0,
+            phase: std::f64::consts::FRAC_PI_2,
+            duration: Some(1.0),
+        };
+        assert!((h.before(1.0) - 1.0).abs() < 1e-15 && h.at(1.0) == 0.0);
+        let pulse = TimeFunction::HalfSine { duration: 1.0 };
+        assert_eq!(pulse.before(0.3), pulse.at(0.3));
+        let loads = Loads {
+            nodal: [step, pulse, TimeFunction::Table(vec![[0.0, 1.0], [0.5, 3.0], [3.0, -1.0]].into())]
+                .into_iter()
+                .map(|time| NodalLoad {
+                    nodes: vec![0],
+                    force: Vector3::x(),
+                    time,
+                })
+                .collect(),
+            ground: None,
+        };
+        assert_eq!(loads.breakpoints(), vec![0.5, 1.0, 3.0]);
     }
 
     /// `rate_before` against a backward difference and `rate_after` against a forward one,

@@ -6,6 +6,7 @@ mod ledger;
 mod load;
 mod newmark;
 mod rayleigh;
+mod step_control;
 mod viscous;
 
 pub use actuation::{Actuator, RestSchedule};
@@ -13,3 +14,4 @@ pub use ledger::Energy;
 pub use load::{FreeLoads, GroundMotion, LoadProfile, Loads, NodalLoad, TimeFunction};
 pub use newmark::{AxialForces, Damping, DampingTangent, Integrator, Newmark, NewmarkParams};
 pub use rayleigh::Rayleigh;
+pub use step_control::AutoStep;

@@ -1,5 +1,6 @@
 use super::actuation::Actuation;
 use super::ledger::{trapezoidal_work, Ledger};
+use super::step_control::{AutoStep, ErrorEstimate};
 use super::viscous::Viscous;
 use super::{Energy, Rayleigh, RestSchedule};
 use crate::solve::{bisect_reaching, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
@@ -19,6 +20,9 @@ pub struct NewmarkParams {
     /// A step whose Newton solve fails is halved, up to this many times (2^cuts sub-steps),
     /// before the stage fails.
     pub max_cuts: u32,
+    /// `dt: auto`: steps sized by a local error estimate ([`Newmark::advance_auto`]), `dt`
+    /// unused; `None`: steps of `dt`.
+    pub auto: Option<AutoStep>,
 }
 
 impl Default for NewmarkParams {
@@ -28,6 +32,7 @@ impl Default for NewmarkParams {
             gamma: 0.5,
             dt: 0.001,
             max_cuts: 6,
+            auto: None,
         }
     }
 }
@@ -93,6 +98,11 @@ pub struct Retried {
     pub attempts: usize,
     /// Steps stopped where a cable snapped taut ([`Newmark::advance`]).
     pub snaps: usize,
+    /// `dt: auto`: steps that converged with an error estimate above the tolerance and
+    /// were taken again shorter.
+    pub rejected: usize,
+    /// `dt: auto`: steps taken at the smallest size with their error above the tolerance.
+    pub over_tolerance: usize,
     /// Newton iterations those attempts took.
     pub iterations: usize,
     /// Tangent factorizations those attempts took.
@@ -140,6 +150,8 @@ pub struct Newmark<'a> {
     next: Next,
     /// The accelerations of the two converged states before the last, for the predictor.
     history: History,
+    /// `dt: auto`'s error estimate; `None` with a fixed step.
+    estimate: Option<ErrorEstimate>,
 }
 
 /// A step is stopped where a cable snaps taut only beyond this fraction of either of its
@@ -151,6 +163,52 @@ pub struct Newmark<'a> {
 /// 1/16 ms (tests/loads.rs). What is left is an O(Δt) error of at most 2 % of a snap's
 /// impulse; tests/slack.rs measures second order through many snaps.
 const SNAP_MARGIN: f64 = 0.02;
+
+/// A step solved to its end or to a cable snapping taut inside it, not committed.
+struct Reached {
+    report: NewtonReport,
+    /// The converged coordinates.
+    trial: Vec<f64>,
+    /// The fraction of the step taken.
+    fraction: f64,
+    /// The members that snap taut where it stopped, damped from there.
+    snapping: Option<Vec<usize>>,
+}
+
+impl Reached {
+    fn whole(report: NewtonReport, trial: Vec<f64>) -> Self {
+        Reached {
+            report,
+            trial,
+            fraction: 1.0,
+            snapping: None,
+        }
+    }
+}
+
+/// The free velocities `v` on every node of `out` (zero at fixed directions).
+fn node_velocities(asm: &Assembly, v: &[f64], out: &mut [Vector3<f64>]) {
+    out.fill(Vector3::zeros());
+    for (i, &vi) in v.iter().enumerate() {
+        let (n, a) = asm.dofs.owner(i);
+        out[n][a] = vi;
+    }
+}
+
+/// Each member's total axial force (elastic + viscous) at `asm`'s state and free
+/// velocities `v`, into `e.forces`, with its round-off into `e.noise` for a step whose
+/// velocity coefficient is `c_v` = γ/(βΔt): 4 ε of the force, and the viscous part's, β_R (dN/dl)
+/// times the velocity's round-off c_v · 4 ε · (model size) (coordinates carry ε of the
+/// model's size; the velocity differences them over Δt).
+fn total_forces(asm: &Assembly, viscous: &Viscous, rest_rate: &[f64], (v, c_v): (&[f64], f64), e: &mut ErrorEstimate) {
+    node_velocities(asm, v, &mut e.velocities);
+    viscous.member_axial(asm, rest_rate, &e.velocities, &mut e.forces);
+    let velocity_noise = c_v * 4.0 * f64::EPSILON * e.length;
+    for ((f, noise), st) in e.forces.iter_mut().zip(&mut e.noise).zip(&asm.states) {
+        *f += st.force;
+        *noise = 4.0 * f64::EPSILON * f.abs() + viscous.rayleigh.beta.abs() * st.stiffness.abs() * velocity_noise;
+    }
+}
 
 /// The step being solved, on the free DOFs.
 struct Next {
@@ -201,12 +259,8 @@ impl AxialForces {
     /// The forces of `nm`'s last converged step.
     pub fn update(&mut self, nm: &Newmark) {
         let asm = &nm.asm;
-        self.velocities.clear();
         self.velocities.resize(asm.model.node_count(), Vector3::zeros());
-        for (i, &vi) in nm.v.iter().enumerate() {
-            let (n, a) = asm.dofs.owner(i);
-            self.velocities[n][a] = vi;
-        }
+        node_velocities(asm, &nm.v, &mut self.velocities);
         self.viscous.resize(asm.states.len(), 0.0);
         nm.member_viscous_forces(&self.velocities, &mut self.viscous);
         self.total.clear();
@@ -236,6 +290,8 @@ impl<'a> Newmark<'a> {
         let u = asm.free_coordinates();
         let Integrator { params, damping, newton } = *integrator;
         let ws = Some(NewtonWorkspace::new(n, &newton, true, || tangent_sparsity(asm.model, asm.dofs)));
+        let (members, nodes) = (asm.model.members.len(), asm.model.node_count());
+        let estimate = params.auto.map(|auto| ErrorEstimate::new(auto, asm.model.size(), members, nodes));
         let mut s = Newmark {
             viscous: Viscous::new(damping.rayleigh, damping.tangent, &asm),
             actuation,
@@ -266,8 +322,10 @@ impl<'a> Newmark<'a> {
                 dt: params.dt,
                 steps: 0,
             },
+            estimate,
         };
         s.consistent_acceleration();
+        s.restart_estimate(true);
         s.ledger = Ledger::start(s.kinetic_energy(), s.asm.strain_energy());
         s
     }
@@ -431,10 +489,20 @@ impl<'a> Newmark<'a> {
     /// member snaps taut (beyond [`SNAP_MARGIN`] of either end); returns the report and the
     /// fraction of dt taken. On failure the state is left as it was.
     fn step(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<(NewtonReport, f64), SolveError> {
+        let reached = self.solve_to_event(dt, load)?;
+        self.commit(reached.trial, reached.fraction * dt);
+        if let Some(snapping) = reached.snapping {
+            self.viscous.damp_from_next_step(snapping);
+        }
+        Ok((reached.report, reached.fraction))
+    }
+
+    /// Solves the step of size dt, or the part of it up to where a slack tension-only
+    /// member snaps taut, not committed. On failure the state is left as it was.
+    fn solve_to_event(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<Reached, SolveError> {
         let (report, trial) = self.solve(dt, load)?;
         let Some((theta, snapping)) = self.viscous.snap_fraction(&self.asm).filter(|s| s.0 < 1.0 - SNAP_MARGIN) else {
-            self.commit(trial, dt);
-            return Ok((report, 1.0));
+            return Ok(Reached::whole(report, trial));
         };
         self.retried.snaps += 1;
         self.retried.iterations += report.iterations;
@@ -444,13 +512,92 @@ impl<'a> Newmark<'a> {
             // At the step's start: the step again, those members damped from its start.
             self.viscous.damp_from_next_step(snapping);
             let (report, trial) = self.solve(dt, load)?;
-            self.commit(trial, dt);
-            return Ok((report, 1.0));
+            return Ok(Reached::whole(report, trial));
         }
         let (report, trial) = self.solve(theta * dt, load)?;
-        self.commit(trial, theta * dt);
-        self.viscous.damp_from_next_step(snapping);
-        Ok((report, theta))
+        Ok(Reached {
+            report,
+            trial,
+            fraction: theta,
+            snapping: Some(snapping),
+        })
+    }
+
+    /// One step of `dt: auto` of at most `dt` [s]: kept where its local error estimate
+    /// ([`super::step_control`]) is within the tolerance, else taken again shorter; also
+    /// shortened where a cable snaps taut inside it, and halved where Newton fails. Returns
+    /// the report of the step kept, its size, and the size the next step should try.
+    pub fn advance_auto(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<(NewtonReport, f64, f64), SolveError> {
+        let auto = self.estimate.as_ref().expect("dt: auto sets up an estimate").settings;
+        let mut dt = dt;
+        loop {
+            let reached = match self.solve_to_event(dt, load) {
+                Ok(reached) => reached,
+                Err(_) if dt > auto.min => {
+                    dt = (0.5 * dt).max(auto.min);
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
+            let taken = reached.fraction * dt;
+            let ratio = self.error_ratio(&reached.trial, taken);
+            if ratio > 1.0 && taken > auto.min {
+                self.retried.rejected += 1;
+                self.retried.iterations += reached.report.iterations;
+                self.retried.factorizations += reached.report.factorizations;
+                self.abandon(reached.trial);
+                dt = auto.next(taken, ratio);
+                continue;
+            }
+            self.retried.over_tolerance += usize::from(ratio > 1.0);
+            self.commit(reached.trial, taken);
+            if let Some(snapping) = reached.snapping {
+                self.viscous.damp_from_next_step(snapping);
+                self.restart_estimate(false);
+            } else if let Some(e) = &mut self.estimate {
+                e.accept(self.time);
+            }
+            return Ok((reached.report, taken, auto.next(taken, ratio)));
+        }
+    }
+
+    /// The error ratio of the solved, uncommitted step of `dt` to `trial` (positions and
+    /// member forces; [`super::step_control`]): `asm`, `next.v` and the damping state are
+    /// the step's end (`newton` ends on a residual there).
+    fn error_ratio(&mut self, trial: &[f64], dt: f64) -> f64 {
+        let Some(e) = &mut self.estimate else { return 0.0 };
+        let beta = self.params.beta;
+        let positions = e.position_ratio(beta, dt, (trial, &self.next.base, &self.a), self.asm.dofs);
+        let rest_rate = self.actuation.as_ref().map_or(&[][..], |a| &a.rate);
+        let c_v = self.params.gamma / (beta * dt);
+        total_forces(&self.asm, &self.viscous, rest_rate, (&self.next.v, c_v), e);
+        positions.max(e.force_ratio(beta, self.time + dt))
+    }
+
+    /// Restarts `dt: auto`'s force history at the current time, from the current forces
+    /// where they are those the next step starts from (`now`; not where a cable is damped
+    /// from here on: its force jumps). Where a load has a kink or jump, or a cable snaps.
+    fn restart_estimate(&mut self, now: bool) {
+        let Some(e) = &mut self.estimate else { return };
+        e.restart();
+        if now {
+            let rest_rate = self.actuation.as_ref().map_or(&[][..], |a| &a.rate);
+            total_forces(&self.asm, &self.viscous, rest_rate, (&self.v, 0.0), e);
+            e.accept(self.time);
+        }
+    }
+
+    /// Sets the external force at the current time to `load`'s there, where a load jumps
+    /// at the end of the last step (which took its left limit: `dt: auto` ends steps on
+    /// jumps), with the acceleration consistent with it, and restarts the error estimate's
+    /// force history.
+    pub fn restart_load(&mut self, load: &dyn Fn(f64, &mut [f64])) {
+        load(self.time, &mut self.next.f);
+        if self.next.f != self.f {
+            std::mem::swap(&mut self.f, &mut self.next.f);
+            self.consistent_acceleration();
+        }
+        self.restart_estimate(true);
     }
 
     /// Leaves the state as it was before the step that reached `trial`.
@@ -470,6 +617,7 @@ impl<'a> Newmark<'a> {
             // A cable damped from here on: the damping force jumps at this step's start, and
             // the step starts from the acceleration just after (as at an actuator's kink).
             self.consistent_acceleration();
+            self.restart_estimate(false);
         }
         self.actuate(self.time + dt);
         self.predict(dt, load);
@@ -515,6 +663,7 @@ impl<'a> Newmark<'a> {
         std::mem::swap(&mut self.fd, &mut self.next.fd);
         self.next.trial = trial;
         self.time += dt;
+        self.viscous.step_committed();
         let actuation = self.actuation.as_mut().map_or(0.0, |a| a.commit(&self.asm));
         let (kinetic, strain) = (self.kinetic_energy(), self.asm.strain_energy());
         self.ledger.add_step(kinetic, strain, damping, external, actuation);

@@ -138,6 +138,13 @@ impl Viscous {
         }
     }
 
+    /// A step has been committed: the members a stopped step handed on were damped in it.
+    pub(super) fn step_committed(&mut self) {
+        if let StiffnessTerm::Objective(o) = &mut self.term {
+            o.damp_next.clear();
+        }
+    }
+
     /// Where in the step just solved, to `asm`'s state, the first tension-only member slack
     /// at its start snaps taut, as a fraction of the step (l − l0 interpolated linearly in
     /// time); `None` where none does, or where the β term does not see it (the paper's
@@ -266,7 +273,8 @@ impl Objective {
     fn keep_taut(&mut self, asm: &Assembly) -> bool {
         self.was_taut.copy_from_slice(&self.taut);
         taut_members(&asm.elements.laws, &asm.rest, &asm.states, &mut self.taut);
-        self.snapping = std::mem::take(&mut self.damp_next);
+        // Copied, not taken: a step tried again from the same start damps them too.
+        self.snapping.clone_from(&self.damp_next);
         for &e in &self.snapping {
             self.taut[e] = true;
         }

@@ -8,7 +8,8 @@ use super::sequence::{Reached, Run, SequenceStage, StageSummary};
 use super::EquilibriumSummary;
 use super::{record_error, solve_error, Analysis, Settings};
 use crate::dynamics::{
-    Actuator, AxialForces, Damping, DampingTangent, Energy, FreeLoads, Integrator, Loads, Newmark, NewmarkParams, Rayleigh, RestSchedule,
+    Actuator, AutoStep, AxialForces, Damping, DampingTangent, Energy, FreeLoads, Integrator, Loads, Newmark, NewmarkParams, Rayleigh,
+    RestSchedule,
 };
 use crate::error::{Error, Result};
 use crate::model::{shape_error, MemberKind, Model};
@@ -154,8 +155,23 @@ impl Initial {
 /// Figures of a finished transient stage.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct TransientSummary {
-    /// Time steps of Δt, duration/Δt rounded.
+    /// Time steps taken: duration/Δt rounded, or those `dt: auto` took (each counted
+    /// once, however it was cut or stopped inside).
     pub steps: usize,
+    /// The smallest step taken [s] (Δt with a fixed step).
+    #[serde(default)]
+    pub smallest_step: f64,
+    /// The largest step taken [s].
+    #[serde(default)]
+    pub largest_step: f64,
+    /// `dt: auto`: steps whose error estimate was above the tolerance, taken again shorter
+    /// (their work is in `failed_iterations`, `failed_factorizations`).
+    #[serde(default)]
+    pub rejected_steps: usize,
+    /// `dt: auto`: steps taken at the smallest size `dt_min` with their error above the
+    /// tolerance (0 where the tolerance was met everywhere).
+    #[serde(default)]
+    pub over_tolerance_steps: usize,
     /// Newton iterations of the converged steps and sub-steps.
     pub newton_iterations: usize,
     /// Tangent factorizations (fewer than iterations where they are reused).
@@ -187,6 +203,9 @@ pub struct TransientSummary {
     pub max_cable_stretch: f64,
     /// Largest strut compression over the stage [N] (positive number).
     pub max_strut_compression: f64,
+    /// Largest strut tension over the stage [N] (0 where no strut pulls).
+    #[serde(default)]
+    pub max_strut_tension: f64,
     /// Largest member tension over the stage, every step [N].
     #[serde(default)]
     pub max_tension: f64,
@@ -243,7 +262,10 @@ impl TransientSummary {
             self.max_compression = self.max_compression.max(-force);
             match mem.kind {
                 MemberKind::Cable => self.max_cable_stretch = self.max_cable_stretch.max(st.length / l0),
-                MemberKind::Strut => self.max_strut_compression = self.max_strut_compression.max(-force),
+                MemberKind::Strut => {
+                    self.max_strut_compression = self.max_strut_compression.max(-force);
+                    self.max_strut_tension = self.max_strut_tension.max(force);
+                }
             }
         }
     }
@@ -303,67 +325,127 @@ impl Transient {
         let masses = structure.free_masses(&dofs);
         let constant = structure.constant_load();
         let loads = FreeLoads::new(&self.loads, &constant, &masses, &dofs);
-        let load_free = |t: f64, f: &mut [f64]| loads.at(t, &dofs, f);
         let started = std::time::Instant::now();
         let mut f0 = vec![0.0; dofs.len()];
-        load_free(0.0, &mut f0);
+        loads.at(0.0, false, &dofs, &mut f0);
         let rest_lengths = state.rest_lengths.clone();
         let mut nm = self.start(structure, &dofs, state, (masses, f0), settings);
+        let mut run = Stepping::new(self, structure, &dofs, constant, reference);
+        run.begin(&nm, recorder)?;
+        match self.params.auto {
+            None => self.fixed_steps(&mut nm, &loads, &mut run, settings.every, recorder)?,
+            Some(auto) => self.auto_steps(&mut nm, (&loads, auto), &mut run, settings.every, recorder)?,
+        }
+        recorder.end_stage(&self.stage).map_err(record_error(name))?;
+        let mut summary = run.finish(&nm);
+        summary.wall_seconds = started.elapsed().as_secs_f64();
+        Ok((final_state(&nm, &dofs, rest_lengths), summary))
+    }
+
+    /// Steps of `params.dt`, duration/dt of them (rounded), their times on that grid.
+    fn fixed_steps(
+        &self,
+        nm: &mut Newmark,
+        loads: &FreeLoads,
+        run: &mut Stepping,
+        every: usize,
+        recorder: &mut dyn Recorder,
+    ) -> Result<()> {
         let dt = self.params.dt;
         let steps = (self.duration / dt).round() as usize;
-        let load_end = self.load_end(&constant);
-        let mut summary = TransientSummary {
-            steps,
-            ..Default::default()
-        };
-        let mut frames = FrameBuilder::new(structure, &dofs);
-        frames.begin(recorder, &self.stage).map_err(record_error(name))?;
-        let mut applied = constant.clone();
-        let mut record = |frames: &mut FrameBuilder, nm: &Newmark, step: usize, load_time: f64, recorder: &mut dyn Recorder| {
-            self.applied_load(structure, &dofs, &constant, load_time, &mut applied);
-            let ground = self.loads.ground_acceleration(load_time);
-            let motion = Motion {
-                newmark: nm,
-                support_acceleration: ground,
-            };
-            frames.record_motion(recorder, motion, step, &applied).map_err(record_error(name))
-        };
-        record(&mut frames, &nm, 0, 0.0, recorder)?;
-        let mut settle = Settle { reference, since: None };
-        settle.track(&nm.asm.x, 0.0);
-        let (mut mechanical, mut axial) = (mechanical_energy(&nm.energy(), load_end.1), AxialForces::default());
+        run.summary.steps = steps;
+        let load = |t: f64, f: &mut [f64]| loads.at(t, false, run.dofs, f);
         for step in 1..=steps {
             let time = step as f64 * dt;
             let failed_before = nm.retried.attempts;
             let report = nm
-                .advance(dt, &load_free)
-                .map_err(solve_error(name, Some(step), Some(time), structure, &dofs))?;
+                .advance(dt, &load)
+                .map_err(solve_error(self.stage.name(), Some(step), Some(time), run.structure, run.dofs))?;
             let load_time = nm.time;
             // Re-anchor time to the step grid so that long runs do not drift.
             nm.time = time;
-            if let Some(what) = non_finite(&nm.asm, Some(&nm.v), &nm.energy()) {
-                let reason = format!("step {step} (t = {time:.4} s): {what} is not finite");
-                return Err(Error::Stage {
-                    stage: name.into(),
-                    reason,
-                });
+            let taken = Taken {
+                index: step,
+                dt,
+                cut: nm.retried.attempts > failed_before,
+                record: step % every == 0 || step == steps,
+                load_time,
+            };
+            run.take(nm, &report, taken, recorder)?;
+        }
+        Ok(())
+    }
+
+    /// `dt: auto`: steps sized by the local error estimate ([`Newmark::advance_auto`]),
+    /// each ending on every kink or jump of a load or actuator it would cross (a step
+    /// ending on a jump takes the load's left limit; the next starts from its right one).
+    fn auto_steps(
+        &self,
+        nm: &mut Newmark,
+        (loads, auto): (&FreeLoads, AutoStep),
+        run: &mut Stepping,
+        every: usize,
+        recorder: &mut dyn Recorder,
+    ) -> Result<()> {
+        let breaks = self.breakpoints();
+        let (mut dt, mut next_break) = (auto.initial, 0);
+        for step in 1.. {
+            while breaks[next_break] <= nm.time {
+                next_break += 1;
             }
-            summary.add_effort(&report, nm.retried.attempts > failed_before);
-            summary.add_step(&nm, &mut axial, time, load_end, dt, &mut mechanical);
-            settle.track(&nm.asm.x, time);
-            if step % settings.every == 0 || step == steps {
-                record(&mut frames, &nm, step, load_time, recorder)?;
+            let target = breaks[next_break];
+            // Within round-off of the breakpoint: a step sized to reach it does.
+            let at_target = |t: f64| (t - target).abs() <= 1e-12 * target;
+            let load = |t: f64, f: &mut [f64]| loads.at(t, at_target(t), run.dofs, f);
+            let step_dt = dt.min(auto.max);
+            let step_dt = if nm.time + 1.05 * step_dt >= target {
+                target - nm.time
             } else {
-                frames.observe(&nm.asm.x, step, time);
+                step_dt
+            };
+            let failed_before = nm.retried.attempts;
+            let (report, taken, next) = nm.advance_auto(step_dt, &load).map_err(solve_error(
+                self.stage.name(),
+                Some(step),
+                Some(nm.time + step_dt),
+                run.structure,
+                run.dofs,
+            ))?;
+            dt = next;
+            let at_break = at_target(nm.time);
+            if at_break {
+                nm.time = target;
+                nm.restart_load(&|t: f64, f: &mut [f64]| loads.at(t, false, run.dofs, f));
+            }
+            let last = at_break && next_break + 1 == breaks.len();
+            let taken = Taken {
+                index: step,
+                dt: taken,
+                cut: nm.retried.attempts > failed_before,
+                record: step % every == 0 || last,
+                load_time: nm.time,
+            };
+            run.take(nm, &report, taken, recorder)?;
+            if last {
+                run.summary.steps = step;
+                return Ok(());
             }
         }
-        recorder.end_stage(&self.stage).map_err(record_error(name))?;
-        summary.equilibrium = frames.check.into();
-        summary.final_kinetic = nm.energy().kinetic;
-        (summary.failed_iterations, summary.failed_factorizations) = (nm.retried.iterations, nm.retried.factorizations);
-        summary.settle_time = settle.since;
-        summary.wall_seconds = started.elapsed().as_secs_f64();
-        Ok((final_state(&nm, &dofs, rest_lengths), summary))
+        unreachable!("the stage ends at its last breakpoint")
+    }
+
+    /// The times in (0, duration) where a load or actuator has a kink or a jump, sorted,
+    /// and the duration last.
+    fn breakpoints(&self) -> Vec<f64> {
+        let mut breaks = self.loads.breakpoints();
+        for a in &self.actuators {
+            a.time.breakpoints(&mut breaks);
+        }
+        breaks.retain(|&t| t < self.duration);
+        breaks.sort_by(f64::total_cmp);
+        breaks.dedup();
+        breaks.push(self.duration);
+        breaks
     }
 
     /// The integrator at `state` (its rest lengths, or the elements' own), with the free
@@ -403,14 +485,130 @@ impl Transient {
     /// motion the inertia load −m a_g on the free ones (the supports move with the ground).
     fn applied_load(&self, structure: &Structure, dofs: &DofMap, constant: &[Vector3<f64>], load_time: f64, applied: &mut [Vector3<f64>]) {
         applied.copy_from_slice(constant);
-        self.loads.add_nodal(load_time, applied);
-        let ground = self.loads.ground_acceleration(load_time);
+        self.loads.add_nodal(load_time, false, applied);
+        let ground = self.loads.ground_acceleration(load_time, false);
         if ground != Vector3::zeros() {
             for i in 0..dofs.len() {
                 let (n, a) = dofs.owner(i);
                 applied[n][a] -= structure.masses[n] * ground[a];
             }
         }
+    }
+}
+
+/// A converged step as the stage takes it in.
+struct Taken {
+    /// Its number in the stage (from 1).
+    index: usize,
+    /// Its size [s].
+    dt: f64,
+    /// Whether it was cut because a Newton solve failed.
+    cut: bool,
+    /// Whether it is recorded (every `every`-th, and the last).
+    record: bool,
+    /// The time its equation took its load at (before the time is re-anchored to a grid).
+    load_time: f64,
+}
+
+/// What a transient keeps over its steps: the recorder's frames, the summary's figures,
+/// the settling check.
+struct Stepping<'s, 'r> {
+    stage: &'s Transient,
+    structure: &'s Structure,
+    dofs: &'s DofMap,
+    /// The structure's constant load on every node, and the applied load of a frame [N].
+    constant: Vec<Vector3<f64>>,
+    applied: Vec<Vector3<f64>>,
+    frames: FrameBuilder,
+    summary: TransientSummary,
+    settle: Settle<'r>,
+    /// The mechanical energy of the last step ([`mechanical_energy`]).
+    mechanical: f64,
+    axial: AxialForces,
+    load_end: (f64, bool),
+}
+
+impl<'s, 'r> Stepping<'s, 'r> {
+    fn new(
+        stage: &'s Transient,
+        structure: &'s Structure,
+        dofs: &'s DofMap,
+        constant: Vec<Vector3<f64>>,
+        reference: Option<&'r [Vector3<f64>]>,
+    ) -> Self {
+        Stepping {
+            load_end: stage.load_end(&constant),
+            stage,
+            structure,
+            dofs,
+            applied: constant.clone(),
+            constant,
+            frames: FrameBuilder::new(structure, dofs),
+            summary: TransientSummary {
+                smallest_step: f64::INFINITY,
+                ..Default::default()
+            },
+            settle: Settle { reference, since: None },
+            mechanical: 0.0,
+            axial: AxialForces::default(),
+        }
+    }
+
+    /// Begins the stage on the recorder with the state at t = 0.
+    fn begin(&mut self, nm: &Newmark, recorder: &mut dyn Recorder) -> Result<()> {
+        let name = self.stage.stage.name();
+        self.frames.begin(recorder, &self.stage.stage).map_err(record_error(name))?;
+        self.record(nm, 0, 0.0, recorder)?;
+        self.settle.track(&nm.asm.x, 0.0);
+        self.mechanical = mechanical_energy(&nm.energy(), self.load_end.1);
+        Ok(())
+    }
+
+    fn record(&mut self, nm: &Newmark, step: usize, load_time: f64, recorder: &mut dyn Recorder) -> Result<()> {
+        let stage = self.stage;
+        stage.applied_load(self.structure, self.dofs, &self.constant, load_time, &mut self.applied);
+        let motion = Motion {
+            newmark: nm,
+            support_acceleration: stage.loads.ground_acceleration(load_time, false),
+        };
+        self.frames
+            .record_motion(recorder, motion, step, &self.applied)
+            .map_err(record_error(stage.stage.name()))
+    }
+
+    /// Takes in the converged step `taken` of `nm`, whose Newton work `report` gives.
+    fn take(&mut self, nm: &Newmark, report: &NewtonReport, taken: Taken, recorder: &mut dyn Recorder) -> Result<()> {
+        let (step, time) = (taken.index, nm.time);
+        if let Some(what) = non_finite(&nm.asm, Some(&nm.v), &nm.energy()) {
+            let reason = format!("step {step} (t = {time:.4} s): {what} is not finite");
+            return Err(Error::Stage {
+                stage: self.stage.stage.name().into(),
+                reason,
+            });
+        }
+        let summary = &mut self.summary;
+        summary.add_effort(report, taken.cut);
+        summary.add_step(nm, &mut self.axial, time, self.load_end, taken.dt, &mut self.mechanical);
+        summary.smallest_step = summary.smallest_step.min(taken.dt);
+        summary.largest_step = summary.largest_step.max(taken.dt);
+        self.settle.track(&nm.asm.x, time);
+        if taken.record {
+            self.record(nm, step, taken.load_time, recorder)
+        } else {
+            self.frames.observe(&nm.asm.x, step, time);
+            Ok(())
+        }
+    }
+
+    /// The stage's figures at its end (but its wall time).
+    fn finish(self, nm: &Newmark) -> TransientSummary {
+        let mut summary = self.summary;
+        summary.equilibrium = self.frames.check.into();
+        summary.final_kinetic = nm.energy().kinetic;
+        (summary.failed_iterations, summary.failed_factorizations) = (nm.retried.iterations, nm.retried.factorizations);
+        (summary.rejected_steps, summary.over_tolerance_steps) = (nm.retried.rejected, nm.retried.over_tolerance);
+        summary.settle_time = self.settle.since;
+        summary
     }
 }
 
