@@ -305,6 +305,21 @@ fn a_time_step_is_a_number_or_auto() {
     );
 }
 
+/// `scheme: midpoint` has no β, γ: one given is named at its line, with the two ways out.
+#[test]
+fn the_midpoint_rule_takes_no_newmark_parameters() {
+    let good = std::fs::read_to_string(SWEEP).unwrap();
+    let text = good.replace("duration: 0.1\n", "duration: 0.1\n  scheme: midpoint\n  newmark_beta: 0.3\n");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&at(&path, &text, "newmark_beta: 0.3"))
+            && err.contains("`deployment.newmark_beta`: applies to `scheme: newmark`")
+            && err.contains("remove `newmark_beta`, or set `scheme: newmark`"),
+        "{err}"
+    );
+}
+
 #[test]
 fn every_bad_value_is_reported_at_its_line() {
     let good = std::fs::read_to_string(SWEEP).unwrap();

@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::sync::{Arc, OnceLock};
 use tsim::config::{parse_case, CaseConfig};
-use tsim::dynamics::{Damping, DampingTangent, Integrator, Newmark, NewmarkParams, Rayleigh};
+use tsim::dynamics::{Damping, DampingTangent, Integrator, Newmark, NewmarkParams, Rayleigh, Scheme};
 use tsim::law::{ForceLaw, LinearElastic};
 use tsim::model::{Member, MemberKind, Model, Node};
 use tsim::pipeline::{run_case, CaseSummary};
@@ -123,6 +123,7 @@ fn try_newmark_sdof(
             dt,
             max_cuts: 0,
             auto: None,
+            scheme: Scheme::Newmark,
         },
         damping: Damping {
             rayleigh,

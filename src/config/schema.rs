@@ -2,7 +2,7 @@ use super::kinds::HoldSpec;
 use super::limits::LimitSpec;
 use super::loading::{six, ten, ActuationSpec, AssignSpec, GroundMotionSpec, InitialSpec, NodalForceSpec, PointMassSpec, StaticSpec};
 use super::materials::MaterialSpec;
-use crate::dynamics::{AutoStep, DampingTangent, LoadProfile, NewmarkParams};
+use crate::dynamics::{AutoStep, DampingTangent, LoadProfile, NewmarkParams, Scheme};
 use crate::model::generate::TowerSpec;
 use crate::model::grid::GridSpec;
 use crate::model::MemberKind;
@@ -398,6 +398,11 @@ pub struct TransientSpec {
     pub dt_min: Option<f64>,
     /// [s]
     pub duration: f64,
+    /// `newmark` (the paper's): the equation of motion at each step's end, with
+    /// `newmark_beta` and `newmark_gamma`; `midpoint`: the implicit midpoint rule, the
+    /// equation at each step's midpoint, which conserves angular momentum exactly.
+    #[serde(default)]
+    pub scheme: Scheme,
     #[serde(default = "default_beta")]
     pub newmark_beta: f64,
     #[serde(default = "default_gamma")]
@@ -493,6 +498,7 @@ impl TransientSpec {
             dt: self.fixed_dt().unwrap_or(defaults.dt),
             max_cuts: self.max_cuts,
             auto: self.fixed_dt().is_none().then(|| self.auto_step()),
+            scheme: self.scheme,
         }
     }
 

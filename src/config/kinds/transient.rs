@@ -5,7 +5,7 @@ use super::{EntryCheck, EntryPlan, StageSpec, Steps};
 use crate::config::loading::{ActuationSpec, InitialAcceleration, NodalVectorSpec, TimeFunctionSpec};
 use crate::config::schema::{LoadSpec, TransientSpec};
 use crate::config::validate::{check_cuts, check_steps, unknown_stage, Problems};
-use crate::dynamics::{Actuator, GroundMotion, Loads, NodalLoad, Rayleigh, TimeFunction};
+use crate::dynamics::{Actuator, GroundMotion, Loads, NewmarkParams, NodalLoad, Rayleigh, Scheme, TimeFunction};
 use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::record::{Stage, StageKind};
@@ -111,8 +111,13 @@ pub(in crate::config) fn check_transient(name: &str, t: &TransientSpec, model: O
         None => check_auto_dt(name, t, p),
     }
     check_cuts(&format!("{name}.max_cuts"), t.max_cuts, p);
-    p.within(&format!("{name}.newmark_gamma"), t.newmark_gamma, 0.0, 1.0, "(0, 1)");
-    p.within(&format!("{name}.newmark_beta"), t.newmark_beta, 0.0, 0.5 + 1e-12, "(0, 0.5]");
+    match t.scheme {
+        Scheme::Newmark => {
+            p.within(&format!("{name}.newmark_gamma"), t.newmark_gamma, 0.0, 1.0, "(0, 1)");
+            p.within(&format!("{name}.newmark_beta"), t.newmark_beta, 0.0, 0.5 + 1e-12, "(0, 0.5]");
+        }
+        Scheme::Midpoint => check_midpoint(name, t, p),
+    }
     if let Some(l) = &t.load {
         p.positive(&format!("{name}.load.duration"), l.duration);
         if let Some(model) = model {
@@ -120,6 +125,28 @@ pub(in crate::config) fn check_transient(name: &str, t: &TransientSpec, model: O
                 p.add(format!("{name}.load.groups"), e.to_string());
             }
         }
+    }
+}
+
+/// `scheme: midpoint` has no β, γ and no acceleration of its own to start from.
+fn check_midpoint(name: &str, t: &TransientSpec, p: &mut Problems) {
+    let newmark = NewmarkParams::default();
+    for (key, value, default) in [
+        ("newmark_beta", t.newmark_beta, newmark.beta),
+        ("newmark_gamma", t.newmark_gamma, newmark.gamma),
+    ] {
+        if value != default {
+            p.add(
+                format!("{name}.{key}"),
+                format!("applies to `scheme: newmark`; the midpoint rule has no β or γ: remove `{key}`, or set `scheme: newmark`"),
+            );
+        }
+    }
+    if t.initial.as_ref().is_some_and(|i| i.acceleration == InitialAcceleration::Zero) {
+        p.add(
+            format!("{name}.initial.acceleration"),
+            "`zero` is a Newmark start (the equation at t = 0 with a = 0); the midpoint rule imposes no equation at t = 0: remove it, or set `scheme: newmark`".to_string(),
+        );
     }
 }
 
@@ -141,7 +168,8 @@ fn check_fixed_dt(name: &str, dt: f64, duration: f64, p: &mut Problems) {
 }
 
 /// `dt: auto`: a tolerance in (0, 1), 0 < dt_min ≤ dt_max ≤ duration, and a Newmark β
-/// whose error constant β − 1/6 is not zero (the estimate would be blind).
+/// whose error constant β − 1/6 is not zero (the estimate would be blind; the midpoint
+/// rule's is 1/12).
 fn check_auto_dt(name: &str, t: &TransientSpec, p: &mut Problems) {
     p.within(&format!("{name}.dt_tolerance"), t.dt_tolerance, 0.0, 1.0, "(0, 1)");
     if let Some(max) = t.dt_max {
@@ -160,7 +188,7 @@ fn check_auto_dt(name: &str, t: &TransientSpec, p: &mut Problems) {
             ),
         );
     }
-    if (t.newmark_beta - 1.0 / 6.0).abs() < 1e-3 {
+    if t.scheme == Scheme::Newmark && (t.newmark_beta - 1.0 / 6.0).abs() < 1e-3 {
         p.add(
             format!("{name}.newmark_beta"),
             "is 1/6, where Newmark's local error constant β − 1/6 vanishes and `dt: auto` cannot estimate the error; give a fixed dt or another β".to_string(),

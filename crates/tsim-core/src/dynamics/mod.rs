@@ -12,6 +12,6 @@ mod viscous;
 pub use actuation::{Actuator, RestSchedule};
 pub use ledger::Energy;
 pub use load::{FreeLoads, GroundMotion, LoadProfile, Loads, NodalLoad, TimeFunction};
-pub use newmark::{AxialForces, Damping, DampingTangent, Integrator, Newmark, NewmarkParams};
+pub use newmark::{AxialForces, Damping, DampingTangent, Integrator, Newmark, NewmarkParams, Scheme};
 pub use rayleigh::Rayleigh;
 pub use step_control::AutoStep;

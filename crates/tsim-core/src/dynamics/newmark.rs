@@ -3,7 +3,9 @@ use super::ledger::{trapezoidal_work, Ledger};
 use super::step_control::{AutoStep, ErrorEstimate};
 use super::viscous::Viscous;
 use super::{Energy, Rayleigh, RestSchedule};
-use crate::solve::{bisect_reaching, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentSink};
+use crate::solve::{
+    bisect_reaching, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, ScaledSink, SolveError, TangentSink,
+};
 use crate::tsm::{tangent_sparsity, Assembly};
 use nalgebra::Vector3;
 
@@ -23,6 +25,34 @@ pub struct NewmarkParams {
     /// `dt: auto`: steps sized by a local error estimate ([`Newmark::advance_auto`]), `dt`
     /// unused; `None`: steps of `dt`.
     pub auto: Option<AutoStep>,
+    /// Where a step's equation of motion holds: at its end (Newmark) or at its midpoint.
+    pub scheme: Scheme,
+}
+
+/// Where each step imposes the equation of motion.
+///
+/// `Newmark` (the paper's, the default): at the step's end, M a_{n+1} = f_{n+1} − f_d − p(x_{n+1}),
+/// with β and γ. With β = 1/4, γ = 1/2 (the trapezoidal rule) the members' central forces
+/// are taken at the step's two ends, and Σ x̄ × (f_n + f_{n+1}) over the mean positions is
+/// not zero: angular momentum drifts at O(Δt²) (Simo & Tarnow 1992).
+///
+/// `Midpoint`: the implicit midpoint rule, M (v_{n+1} − v_n)/Δt = ½ (f_n + f_{n+1})
+/// − f_d − p at x_{n+½} = ½ (x_n + x_{n+1}) and v_{n+½} = (x_{n+1} − x_n)/Δt, with
+/// x_{n+1} − x_n = Δt v_{n+½}. Every member force, elastic and viscous, is central at
+/// x_{n+½}, so Σ x_{n+½} × (Δt forces) = 0 and angular momentum is conserved exactly
+/// (to the solver's tolerance), as linear momentum is by both. Second order, symplectic,
+/// and on a linear structure the same steps as the trapezoidal rule; β and γ do not apply.
+/// Its step matrix is half the trapezoidal one at the midpoint (one factorization a step,
+/// as Newmark's).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Scheme {
+    /// Newmark-β: the equation of motion at the step's end.
+    #[default]
+    Newmark,
+    /// The implicit midpoint rule: the equation at the step's midpoint, angular momentum
+    /// conserved.
+    Midpoint,
 }
 
 impl Default for NewmarkParams {
@@ -33,6 +63,39 @@ impl Default for NewmarkParams {
             dt: 0.001,
             max_cuts: 6,
             auto: None,
+            scheme: Scheme::Newmark,
+        }
+    }
+}
+
+impl NewmarkParams {
+    /// β and γ of the step's kinematics, a = (u − base)/(βΔt²) and
+    /// v_{n+1} = v_n + Δt((1 − γ) a_n + γ a): the midpoint rule is β = ½, γ = 1 with
+    /// a = (v_{n+1} − v_n)/Δt, the acceleration at the midpoint.
+    fn kinematics(&self) -> (f64, f64) {
+        match self.scheme {
+            Scheme::Newmark => (self.beta, self.gamma),
+            Scheme::Midpoint => (0.5, 1.0),
+        }
+    }
+
+    /// The fraction of a step at which its equation of motion holds (its rest lengths and
+    /// their rate are taken there): 1 for Newmark, ½ for the midpoint rule.
+    fn equation_at(&self) -> f64 {
+        match self.scheme {
+            Scheme::Newmark => 1.0,
+            Scheme::Midpoint => 0.5,
+        }
+    }
+
+    /// C of the local position error C Δt³ x''' a step makes (Zienkiewicz & Xie 1991):
+    /// β − 1/6 for Newmark; 1/12 for the midpoint rule (x_{n+1} = x_n + Δt v_n +
+    /// ½Δt² a(t_{n+½}) against the Taylor series' ½Δt² a_n + Δt³/6 ȧ: Δt³ (¼ − 1/6) ȧ),
+    /// that of the trapezoidal rule.
+    fn error_constant(&self) -> f64 {
+        match self.scheme {
+            Scheme::Newmark => self.beta - 1.0 / 6.0,
+            Scheme::Midpoint => 1.0 / 12.0,
         }
     }
 }
@@ -210,13 +273,16 @@ fn total_forces(asm: &Assembly, viscous: &Viscous, rest_rate: &[f64], (v, c_v): 
     }
 }
 
-/// The step being solved, on the free DOFs.
+/// The step being solved, on the free DOFs: `v` the velocities at its end, and with the
+/// midpoint rule `mid` and `v_mid` the coordinates and velocities its equation is taken at.
 struct Next {
     base: Vec<f64>,
     trial: Vec<f64>,
     f: Vec<f64>,
     v: Vec<f64>,
     fd: Vec<f64>,
+    mid: Vec<f64>,
+    v_mid: Vec<f64>,
 }
 
 /// Accelerations a_{n−1} and a_{n−2} of the converged states before the last one, and how
@@ -315,6 +381,8 @@ impl<'a> Newmark<'a> {
                 f: vec![0.0; n],
                 v: vec![0.0; n],
                 fd: vec![0.0; n],
+                mid: vec![0.0; n],
+                v_mid: vec![0.0; n],
             },
             history: History {
                 previous: vec![0.0; n],
@@ -449,7 +517,7 @@ impl<'a> Newmark<'a> {
     /// Newmark's velocity at the end of a step of size dt ending at coordinates `u`, into
     /// `next.v`: v_{n+1} = v_n + Δt((1 − γ) a_n + γ a_{n+1}), a_{n+1} = (u − base)/(βΔt²).
     fn next_velocity(&mut self, u: &[f64], dt: f64) {
-        let (beta, gamma) = (self.params.beta, self.params.gamma);
+        let (beta, gamma) = self.params.kinematics();
         let c_a = 1.0 / (beta * dt * dt);
         let (v, a, base) = (&self.v, &self.a, &self.next.base);
         for (i, v_next) in self.next.v.iter_mut().enumerate() {
@@ -471,7 +539,7 @@ impl<'a> Newmark<'a> {
     /// the converged step meets (measured iteration counts: bench/opensees.md, bench/pipeline.md).
     fn predict(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) {
         load(self.time + dt, &mut self.next.f);
-        let beta = self.params.beta;
+        let beta = self.params.kinematics().0;
         let history = self.history.steps >= 2 && self.history.dt == dt;
         let next = &mut self.next;
         for i in 0..self.mass.len() {
@@ -566,12 +634,13 @@ impl<'a> Newmark<'a> {
     /// the step's end (`newton` ends on a residual there).
     fn error_ratio(&mut self, trial: &[f64], dt: f64) -> f64 {
         let Some(e) = &mut self.estimate else { return 0.0 };
-        let beta = self.params.beta;
-        let positions = e.position_ratio(beta, dt, (trial, &self.next.base, &self.a), self.asm.dofs);
+        let ((beta, gamma), c) = (self.params.kinematics(), self.params.error_constant());
+        // a_{n+1} − a_n spans the step; the midpoint rule's a_{n+½} − a_n half of it.
+        let c_positions = c / self.params.equation_at();
+        let positions = e.position_ratio((beta, c_positions), dt, (trial, &self.next.base, &self.a), self.asm.dofs);
         let rest_rate = self.actuation.as_ref().map_or(&[][..], |a| &a.rate);
-        let c_v = self.params.gamma / (beta * dt);
-        total_forces(&self.asm, &self.viscous, rest_rate, (&self.next.v, c_v), e);
-        positions.max(e.force_ratio(beta, self.time + dt))
+        total_forces(&self.asm, &self.viscous, rest_rate, (&self.next.v, gamma / (beta * dt)), e);
+        positions.max(e.force_ratio(c, self.time + dt))
     }
 
     /// Restarts `dt: auto`'s force history at the current time, from the current forces
@@ -619,7 +688,7 @@ impl<'a> Newmark<'a> {
             self.consistent_acceleration();
             self.restart_estimate(false);
         }
-        self.actuate(self.time + dt);
+        self.actuate(self.time + self.params.equation_at() * dt);
         self.predict(dt, load);
         let length = self.asm.model.size();
         let mut trial = std::mem::take(&mut self.next.trial);
@@ -634,7 +703,12 @@ impl<'a> Newmark<'a> {
         let (iterations, factorizations) = ws.last_effort();
         self.ws = Some(ws);
         match result {
-            Ok(report) => Ok((report, trial)),
+            Ok(report) => {
+                if self.params.scheme == Scheme::Midpoint {
+                    self.end_midpoint_step(&trial, dt);
+                }
+                Ok((report, trial))
+            }
             Err(e) => {
                 self.retried.attempts += 1;
                 self.retried.iterations += iterations;
@@ -645,18 +719,37 @@ impl<'a> Newmark<'a> {
         }
     }
 
+    /// A midpoint step of size dt converged to end coordinates `u`, its equation at the
+    /// midpoint: `asm` (rest lengths, member states) and the damping moduli are set to its
+    /// end, what the step commits and records; `next.fd` stays the midpoint's, the force
+    /// its equation balanced.
+    fn end_midpoint_step(&mut self, u: &[f64], dt: f64) {
+        if let Some(a) = &mut self.actuation {
+            a.step_to(self.time + dt, &mut self.asm);
+        }
+        self.asm.set_free(u);
+        self.viscous.at_iterate(&self.asm);
+    }
+
     /// Commits the converged step of size dt to coordinates `trial`: positions,
-    /// accelerations, velocities, damping force, energy ledger. The last residual was
+    /// accelerations, velocities, damping force, energy ledger (with the midpoint rule,
+    /// the acceleration and damping force at the step's end). The last residual was
     /// evaluated at `trial` (`newton` ends on it): `asm`, the damping state, `next.v` and
     /// `next.fd` hold the converged step's values.
     fn commit(&mut self, mut trial: Vec<f64>, dt: f64) {
-        let c_a = 1.0 / (self.params.beta * dt * dt);
+        let c_a = 1.0 / (self.params.kinematics().0 * dt * dt);
         self.history.push(&mut self.a, dt);
         for (a, (u, base)) in self.a.iter_mut().zip(trial.iter().zip(&self.next.base)) {
             *a = c_a * (u - base);
         }
         let external = trapezoidal_work(&self.f, &self.next.f, &self.u, &trial);
-        let damping = trapezoidal_work(&self.fd, &self.next.fd, &self.u, &trial);
+        // The damping force the step's equation balanced: at its end and start (Newmark's
+        // trapezoidal work), or the midpoint's over the whole step.
+        let fd_start = match self.params.scheme {
+            Scheme::Newmark => &self.fd,
+            Scheme::Midpoint => &self.next.fd,
+        };
+        let damping = trapezoidal_work(fd_start, &self.next.fd, &self.u, &trial);
         std::mem::swap(&mut self.u, &mut trial);
         std::mem::swap(&mut self.v, &mut self.next.v);
         std::mem::swap(&mut self.f, &mut self.next.f);
@@ -665,25 +758,35 @@ impl<'a> Newmark<'a> {
         self.time += dt;
         self.viscous.step_committed();
         let actuation = self.actuation.as_mut().map_or(0.0, |a| a.commit(&self.asm));
+        if self.params.scheme == Scheme::Midpoint {
+            // The acceleration and damping force at the step's end, where the midpoint rule
+            // has none of its own: what the records, the next step's predictor and the
+            // next stage start from.
+            self.consistent_acceleration();
+        }
         let (kinetic, strain) = (self.kinetic_energy(), self.asm.strain_energy());
         self.ledger.add_step(kinetic, strain, damping, external, actuation);
     }
 }
 
-/// The nonlinear equation of one step: r(u) = f − M a(u) − C v(u) − p(u), with
-/// a = (u − base)/(β dt²), v = v_n + dt((1−γ) a_n + γ a); Jacobian
-/// K_T + M/(β dt²) + (γ/(β dt)) C (for `Current`, less ∂K_T/∂u · v).
+/// The nonlinear equation of one step in its end coordinates u: r(u) = f − M a(u) − C v − p,
+/// with a = (u − base)/(β dt²), v(u) = v_n + dt((1−γ) a_n + γ a). Newmark: f, C v and p at
+/// the end (u, v(u)); Jacobian K_T + M/(β dt²) + (γ/(β dt)) C (for `Current`, less
+/// ∂K_T/∂u · v). Midpoint (β = ½, γ = 1 in the kinematics): f = ½ (f_n + f_{n+1}), C v and p
+/// at x_{n+½} = ½ (u_n + u), v_{n+½} = ½ (v_n + v(u)), both moving at half u's rate:
+/// Jacobian M/(β dt²) + α M/dt + ½ (K_T + (2/dt) C_β) at the midpoint, half the trapezoidal
+/// rule's K_T + 4M/dt² + (2/dt) C there.
 struct StepProblem<'s, 'a> {
     nm: &'s mut Newmark<'a>,
     dt: f64,
 }
 
 impl StepProblem<'_, '_> {
-    /// The Newmark coefficients c_a = 1/(βΔt²) and c_v = γ/(βΔt) of a = c_a (u − base) and
-    /// the step's velocity.
+    /// c_a = 1/(βΔt²) of a = c_a (u − base), and c_v the rate at which the velocity the
+    /// damping force is evaluated at moves with u: γ/(βΔt), or 1/Δt at the midpoint.
     fn coefficients(&self) -> (f64, f64) {
-        let (beta, gamma, dt) = (self.nm.params.beta, self.nm.params.gamma, self.dt);
-        (1.0 / (beta * dt * dt), gamma / (beta * dt))
+        let ((beta, gamma), dt) = (self.nm.params.kinematics(), self.dt);
+        (1.0 / (beta * dt * dt), self.nm.params.equation_at() * gamma / (beta * dt))
     }
 }
 
@@ -691,18 +794,29 @@ impl Residual for StepProblem<'_, '_> {
     fn residual(&mut self, u: &[f64], r: &mut [f64]) -> Scale {
         let (c_a, c_v) = self.coefficients();
         let nm = &mut *self.nm;
-        nm.asm.set_free(u);
-        nm.viscous.at_iterate(&nm.asm);
         nm.next_velocity(u, self.dt);
+        let midpoint = nm.params.scheme == Scheme::Midpoint;
+        let next = &mut nm.next;
+        if midpoint {
+            next.mid.iter_mut().zip(&nm.u).zip(u).for_each(|((m, a), b)| *m = 0.5 * (a + b));
+            next.v_mid
+                .iter_mut()
+                .zip(&nm.v)
+                .zip(&next.v)
+                .for_each(|((m, a), b)| *m = 0.5 * (a + b));
+        }
+        nm.asm.set_free(if midpoint { &next.mid } else { u });
+        nm.viscous.at_iterate(&nm.asm);
+        let v = if midpoint { &next.v_mid } else { &next.v };
         let rest_rate = nm.actuation.as_ref().map_or(&[][..], |a| &a.rate);
-        nm.viscous.force(&nm.asm, &nm.mass, &nm.next.v, rest_rate, &mut nm.next.fd);
+        nm.viscous.force(&nm.asm, &nm.mass, v, rest_rate, &mut next.fd);
         let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);
-        let next = &nm.next;
         for i in 0..u.len() {
             let m = nm.mass[i];
             let inertia = m * c_a * (u[i] - next.base[i]);
-            r[i] = next.f[i] - inertia - next.fd[i] - nm.asm.p_free(i);
-            applied = applied.max(next.f[i].abs()).max(inertia.abs());
+            let f = if midpoint { 0.5 * (nm.f[i] + next.f[i]) } else { next.f[i] };
+            r[i] = f - inertia - next.fd[i] - nm.asm.p_free(i);
+            applied = applied.max(f.abs()).max(inertia.abs());
             inertia_floor = inertia_floor.max(m * c_a * u[i].abs());
         }
         // The inertia term differences absolute coordinates: its round-off is
@@ -724,13 +838,29 @@ impl Residual for StepProblem<'_, '_> {
     }
 
     /// K_T + M (c_a + α_R c_v) + the β_R term's derivative ([`Viscous::assemble_tangent`]).
+    /// At the midpoint x and v move at s = ½ of u's rate: the members' part is assembled
+    /// with the velocity's rate c_v/s and scaled by s.
     fn tangent(&mut self, k: &mut dyn TangentSink) {
         let (c_a, c_v) = self.coefficients();
         let nm = &mut *self.nm;
         let alpha_r = nm.viscous.rayleigh.alpha;
         let mass_term = nm.mass.iter().fold(f64::INFINITY, |m, &mi| m.min(mi)) * (c_a + alpha_r * c_v);
         let rest_rate = nm.actuation.as_ref().map_or(&[][..], |a| &a.rate);
-        nm.viscous.assemble_tangent(&nm.asm, &nm.next.v, rest_rate, (c_v, mass_term), k);
+        let s = nm.params.equation_at();
+        let v = if nm.params.scheme == Scheme::Midpoint {
+            &nm.next.v_mid
+        } else {
+            &nm.next.v
+        };
+        let mut scaled;
+        let members: &mut dyn TangentSink = if s == 1.0 {
+            &mut *k
+        } else {
+            scaled = ScaledSink { sink: &mut *k, by: s };
+            &mut scaled
+        };
+        nm.viscous
+            .assemble_tangent(&nm.asm, v, rest_rate, (c_v / s, mass_term / s), members);
         for (i, m) in nm.mass.iter().enumerate() {
             k.add(i, i, m * (c_a + alpha_r * c_v));
         }
@@ -875,6 +1005,27 @@ mod tests {
         ] {
             moving_prism(tangent, actuate, |nm| {
                 assert_eq!(nm.rest_rate().iter().any(|&r| r != 0.0), actuate);
+                assert_step_jacobian(nm, tangent, symmetric_below);
+            });
+        }
+    }
+
+    /// The midpoint rule's step tangent (members' part at x_{n+½}, halved: [`StepProblem`])
+    /// against central differences, as [`step_jacobian_matches_finite_differences`] checks
+    /// Newmark's; `Current` is left out there because its omitted term is taken at the
+    /// frozen end velocities, not the midpoint's.
+    #[test]
+    fn midpoint_step_jacobian_matches_finite_differences() {
+        for (tangent, symmetric_below, actuate) in [
+            (DampingTangent::Objective, 0.0, false),
+            (DampingTangent::Objective, f64::INFINITY, false),
+            (DampingTangent::Objective, 0.0, true),
+            (DampingTangent::Initial, 0.0, false),
+            (DampingTangent::LastConverged, 0.0, true),
+        ] {
+            moving_prism(tangent, actuate, |nm| {
+                nm.params.scheme = Scheme::Midpoint;
+                nm.predict(0.01, &|t, f| f.iter_mut().for_each(|fi| *fi = t));
                 assert_step_jacobian(nm, tangent, symmetric_below);
             });
         }

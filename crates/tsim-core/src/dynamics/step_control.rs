@@ -97,10 +97,10 @@ impl ErrorEstimate {
     }
 
     /// The positions' error ratio of a step of `dt` from acceleration `a` (a_n) to
-    /// coordinates `u = base + β dt² a_{n+1}`: max over nodes of |e_u| / (tolerance · size).
-    pub(super) fn position_ratio(&mut self, beta: f64, dt: f64, (u, base, a): (&[f64], &[f64], &[f64]), dofs: &DofMap) -> f64 {
+    /// coordinates `u = base + β dt² a_{n+1}`, its error e_u = C dt² (a_{n+1} − a_n) (C: the
+    /// scheme's error constant, β − 1/6 for Newmark): max over nodes of |e_u| / (tolerance · size).
+    pub(super) fn position_ratio(&mut self, (beta, c): (f64, f64), dt: f64, (u, base, a): (&[f64], &[f64], &[f64]), dofs: &DofMap) -> f64 {
         self.node_error.fill(0.0);
-        let c = beta - 1.0 / 6.0;
         for i in 0..u.len() {
             let a_next = (u[i] - base[i]) / (beta * dt * dt);
             let e = c * dt * dt * (a_next - a[i]);
@@ -110,19 +110,20 @@ impl ErrorEstimate {
         largest / (self.settings.tolerance * self.length)
     }
 
-    /// The forces' error ratio of `forces` at time `t` (0 until three accepted steps since
-    /// the last restart are known), each member's estimate less its round-off `noise`:
+    /// The forces' error ratio of `forces` at time `t`, for a scheme of error constant `c`
+    /// (0 until three accepted steps since the last restart are known), each member's
+    /// estimate less its round-off `noise`:
     /// without, a short step's viscous force, β (dN/dl) times a velocity differenced over
     /// Δt, carries round-off growing as 1/Δt that the third difference amplifies, and
     /// below some Δt no step meets the tolerance (measured: the paper deployment with a
     /// step launch at tolerance 1e-5 stuck at `dt_min` 8e-8 s after the launch).
-    pub(super) fn force_ratio(&self, beta: f64, t: f64) -> f64 {
+    pub(super) fn force_ratio(&self, c: f64, t: f64) -> f64 {
         if self.known < 3 || self.force_scale == 0.0 {
             return 0.0;
         }
         let [t0, t1, t2] = self.times;
         let [h0, h1, h2] = &self.history;
-        let c = 6.0 * (beta - 1.0 / 6.0).abs() * (t - t0).powi(3);
+        let c = 6.0 * c.abs() * (t - t0).powi(3);
         let mut largest = 0.0_f64;
         for j in 0..self.forces.len() {
             let d_new = (self.forces[j] - h0[j]) / (t - t0);
@@ -174,7 +175,7 @@ mod tests {
             }
             let t = 0.32;
             e.forces[0] = f(t);
-            let ratio = e.force_ratio(0.25, t) * e.force_scale;
+            let ratio = e.force_ratio(0.25 - 1.0 / 6.0, t) * e.force_scale;
             let exact = expected * 6.0 / 12.0 * (t - 0.25_f64).powi(3);
             assert!((ratio - exact).abs() < 1e-14, "{ratio} vs {exact}");
         }

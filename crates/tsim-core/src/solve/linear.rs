@@ -72,6 +72,29 @@ pub trait TangentSink {
     }
 }
 
+/// Adds `by` times what it is given to `sink` (element blocks kept as blocks, so the
+/// sink's caching of where they go still holds).
+pub struct ScaledSink<'k> {
+    /// Where the scaled entries go.
+    pub sink: &'k mut dyn TangentSink,
+    /// The factor.
+    pub by: f64,
+}
+
+impl TangentSink for ScaledSink<'_> {
+    fn add(&mut self, row: usize, col: usize, value: f64) {
+        self.sink.add(row, col, self.by * value);
+    }
+
+    fn add_element(&mut self, e: usize, free: &[Option<usize>; 6], block: &[[f64; 6]; 6]) {
+        self.sink.add_element(e, free, &block.map(|row| row.map(|x| self.by * x)));
+    }
+
+    fn add_pair(&mut self, e: usize, free: &[Option<usize>; 6], k: &[[f64; 3]; 3]) {
+        self.sink.add_pair(e, free, &k.map(|row| row.map(|x| self.by * x)));
+    }
+}
+
 impl TangentSink for Mat<f64> {
     fn add(&mut self, row: usize, col: usize, value: f64) {
         self[(row, col)] += value;

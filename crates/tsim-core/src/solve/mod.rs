@@ -14,7 +14,7 @@ pub mod small_solve;
 pub use bisect::{bisect, bisect_reaching};
 pub use dense_eigen::symmetric_eigen;
 pub use eigen::{krylov_dimension, partial_eigen, Diagonal, EigenError, EigenPairs, Shift};
-pub use linear::{DenseSolver, LinearError, SparseSolver, Sparsity, TangentSink, TangentSolver};
+pub use linear::{DenseSolver, LinearError, ScaledSink, SparseSolver, Sparsity, TangentSink, TangentSolver};
 pub use newton::{
     newton, LinearSolverChoice, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentUpdate, DENSE_LIMIT,
     REUSE_CONTRACTION,
