@@ -43,7 +43,11 @@ pub struct NewmarkParams {
 /// (to the solver's tolerance), as linear momentum is by both. Second order, symplectic,
 /// and on a linear structure the same steps as the trapezoidal rule; β and γ do not apply.
 /// Its step matrix is half the trapezoidal one at the midpoint (one factorization a step,
-/// as Newmark's).
+/// as Newmark's). Not for stiff members that rotate fast: the end state
+/// x_{n+1} = 2 x_{n+½} − x_n lengthens a member turning at ω by l ω²Δt²/8 (the chord of
+/// an arc), which its EA turns into a recorded force (76 kN in a strut of the paper
+/// deployment at Δt = 2 ms; docs/dt_auto.md). The energy–momentum form (Simo & Tarnow
+/// 1992: each member's force from its end lengths along the midpoint direction) is the cure.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Scheme {
