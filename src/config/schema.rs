@@ -400,7 +400,8 @@ pub struct TransientSpec {
     pub duration: f64,
     /// `newmark` (the paper's): the equation of motion at each step's end, with
     /// `newmark_beta` and `newmark_gamma`; `midpoint`: the implicit midpoint rule, the
-    /// equation at each step's midpoint, which conserves angular momentum exactly.
+    /// equation at each step's midpoint, which conserves angular momentum to Newton's
+    /// residual but overstates the forces of fast-rotating stiff members (docs/config.md).
     #[serde(default)]
     pub scheme: Scheme,
     #[serde(default = "default_beta")]
