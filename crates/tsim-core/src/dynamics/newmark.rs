@@ -40,7 +40,8 @@ pub struct NewmarkParams {
 /// − f_d − p at x_{n+½} = ½ (x_n + x_{n+1}) and v_{n+½} = (x_{n+1} − x_n)/Δt, with
 /// x_{n+1} − x_n = Δt v_{n+½}. Every member force, elastic and viscous, is central at
 /// x_{n+½}, so Σ x_{n+½} × (Δt forces) = 0 and angular momentum is conserved exactly
-/// (to the solver's tolerance), as linear momentum is by both. Second order, symplectic,
+/// (to Newton's residual: `newton.force_tolerance: 0` takes it to round-off), as linear
+/// momentum is by both. Second order, symplectic,
 /// and on a linear structure the same steps as the trapezoidal rule; β and γ do not apply.
 /// Its step matrix is half the trapezoidal one at the midpoint (one factorization a step,
 /// as Newmark's). Not for stiff members that rotate fast: the end state
