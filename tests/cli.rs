@@ -309,15 +309,20 @@ fn a_time_step_is_a_number_or_auto() {
 #[test]
 fn the_midpoint_rule_takes_no_newmark_parameters() {
     let good = std::fs::read_to_string(SWEEP).unwrap();
-    let text = good.replace("duration: 0.1\n", "duration: 0.1\n  scheme: midpoint\n  newmark_beta: 0.3\n");
-    let (out, path) = bad_config(&text);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains(&at(&path, &text, "newmark_beta: 0.3"))
-            && err.contains("`deployment.newmark_beta`: applies to `scheme: newmark`")
-            && err.contains("remove `newmark_beta`, or set `scheme: newmark`"),
-        "{err}"
-    );
+    for scheme in ["midpoint", "energy_momentum"] {
+        let text = good.replace(
+            "duration: 0.1\n",
+            &format!("duration: 0.1\n  scheme: {scheme}\n  newmark_beta: 0.3\n"),
+        );
+        let (out, path) = bad_config(&text);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&at(&path, &text, "newmark_beta: 0.3"))
+                && err.contains("`deployment.newmark_beta`: applies to `scheme: newmark`")
+                && err.contains("remove `newmark_beta`, or set `scheme: newmark`"),
+            "{scheme}: {err}"
+        );
+    }
 }
 
 #[test]

@@ -116,7 +116,7 @@ pub(in crate::config) fn check_transient(name: &str, t: &TransientSpec, model: O
             p.within(&format!("{name}.newmark_gamma"), t.newmark_gamma, 0.0, 1.0, "(0, 1)");
             p.within(&format!("{name}.newmark_beta"), t.newmark_beta, 0.0, 0.5 + 1e-12, "(0, 0.5]");
         }
-        Scheme::Midpoint => check_midpoint(name, t, p),
+        Scheme::Midpoint | Scheme::EnergyMomentum => check_midpoint(name, t, p),
     }
     if let Some(l) = &t.load {
         p.positive(&format!("{name}.load.duration"), l.duration);

@@ -6,7 +6,7 @@ use super::{Energy, Rayleigh, RestSchedule};
 use crate::solve::{
     bisect_reaching, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, ScaledSink, SolveError, TangentSink,
 };
-use crate::tsm::{tangent_sparsity, Assembly};
+use crate::tsm::{tangent_sparsity, Assembly, EnergyMomentum};
 use nalgebra::Vector3;
 
 /// Newmark-β integration parameters; the defaults of every transient stage's config.
@@ -47,8 +47,14 @@ pub struct NewmarkParams {
 /// as Newmark's). Not for stiff members that rotate fast: the end state
 /// x_{n+1} = 2 x_{n+½} − x_n lengthens a member turning at ω by l ω²Δt²/8 (the chord of
 /// an arc), which its EA turns into a recorded force (76 kN in a strut of the paper
-/// deployment at Δt = 2 ms; docs/dt_auto.md). The energy–momentum form (Simo & Tarnow
-/// 1992: each member's force from its end lengths along the midpoint direction) is the cure.
+/// deployment at Δt = 2 ms; docs/dt_auto.md).
+///
+/// `EnergyMomentum`: the midpoint rule with each member's elastic force S d_{n+½}, S the
+/// strain energy's change over the step per Δ(l²/2) (Simo & Tarnow 1992; Gonzalez 1996;
+/// `tsm::EnergyMomentum`): still central at x_{n+½}, so angular momentum is kept, and its
+/// work over a step is the energy's change, so the energy ledger closes to Newton's
+/// residual (undamped: energy conserved). The force comes from the end lengths, so a
+/// rotating strut has no chord error. Its step matrix is not symmetric (LU).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Scheme {
@@ -58,6 +64,16 @@ pub enum Scheme {
     /// The implicit midpoint rule: the equation at the step's midpoint, angular momentum
     /// conserved.
     Midpoint,
+    /// The midpoint rule with each member's force in energy–momentum form: angular
+    /// momentum and, undamped, energy conserved; no chord error on rotating members.
+    EnergyMomentum,
+}
+
+impl Scheme {
+    /// Whether the step's equation holds at its midpoint.
+    fn at_midpoint(self) -> bool {
+        self != Scheme::Newmark
+    }
 }
 
 impl Default for NewmarkParams {
@@ -80,7 +96,7 @@ impl NewmarkParams {
     fn kinematics(&self) -> (f64, f64) {
         match self.scheme {
             Scheme::Newmark => (self.beta, self.gamma),
-            Scheme::Midpoint => (0.5, 1.0),
+            Scheme::Midpoint | Scheme::EnergyMomentum => (0.5, 1.0),
         }
     }
 
@@ -89,7 +105,7 @@ impl NewmarkParams {
     fn equation_at(&self) -> f64 {
         match self.scheme {
             Scheme::Newmark => 1.0,
-            Scheme::Midpoint => 0.5,
+            Scheme::Midpoint | Scheme::EnergyMomentum => 0.5,
         }
     }
 
@@ -100,7 +116,7 @@ impl NewmarkParams {
     fn error_constant(&self) -> f64 {
         match self.scheme {
             Scheme::Newmark => self.beta - 1.0 / 6.0,
-            Scheme::Midpoint => 1.0 / 12.0,
+            Scheme::Midpoint | Scheme::EnergyMomentum => 1.0 / 12.0,
         }
     }
 }
@@ -220,6 +236,8 @@ pub struct Newmark<'a> {
     history: History,
     /// `dt: auto`'s error estimate; `None` with a fixed step.
     estimate: Option<ErrorEstimate>,
+    /// The members' forces over the step with `scheme: energy_momentum`.
+    energy_momentum: Option<EnergyMomentum>,
 }
 
 /// A step is stopped where a cable snaps taut only beyond this fraction of either of its
@@ -363,6 +381,7 @@ impl<'a> Newmark<'a> {
         let ws = Some(NewtonWorkspace::new(n, &newton, true, || tangent_sparsity(asm.model, asm.dofs)));
         let (members, nodes) = (asm.model.members.len(), asm.model.node_count());
         let estimate = params.auto.map(|auto| ErrorEstimate::new(auto, asm.model.size(), members, nodes));
+        let energy_momentum = (params.scheme == Scheme::EnergyMomentum).then(|| EnergyMomentum::new(&asm));
         let mut s = Newmark {
             viscous: Viscous::new(damping.rayleigh, damping.tangent, &asm),
             actuation,
@@ -396,6 +415,7 @@ impl<'a> Newmark<'a> {
                 steps: 0,
             },
             estimate,
+            energy_momentum,
         };
         s.consistent_acceleration();
         s.restart_estimate(true);
@@ -693,6 +713,9 @@ impl<'a> Newmark<'a> {
             self.consistent_acceleration();
             self.restart_estimate(false);
         }
+        if let Some(em) = &mut self.energy_momentum {
+            em.start_step(&self.asm);
+        }
         self.actuate(self.time + self.params.equation_at() * dt);
         self.predict(dt, load);
         let length = self.asm.model.size();
@@ -709,7 +732,7 @@ impl<'a> Newmark<'a> {
         self.ws = Some(ws);
         match result {
             Ok(report) => {
-                if self.params.scheme == Scheme::Midpoint {
+                if self.params.scheme.at_midpoint() {
                     self.end_midpoint_step(&trial, dt);
                 }
                 Ok((report, trial))
@@ -750,9 +773,10 @@ impl<'a> Newmark<'a> {
         let external = trapezoidal_work(&self.f, &self.next.f, &self.u, &trial);
         // The damping force the step's equation balanced: at its end and start (Newmark's
         // trapezoidal work), or the midpoint's over the whole step.
-        let fd_start = match self.params.scheme {
-            Scheme::Newmark => &self.fd,
-            Scheme::Midpoint => &self.next.fd,
+        let fd_start = if self.params.scheme.at_midpoint() {
+            &self.next.fd
+        } else {
+            &self.fd
         };
         let damping = trapezoidal_work(fd_start, &self.next.fd, &self.u, &trial);
         std::mem::swap(&mut self.u, &mut trial);
@@ -763,7 +787,7 @@ impl<'a> Newmark<'a> {
         self.time += dt;
         self.viscous.step_committed();
         let actuation = self.actuation.as_mut().map_or(0.0, |a| a.commit(&self.asm));
-        if self.params.scheme == Scheme::Midpoint {
+        if self.params.scheme.at_midpoint() {
             // The acceleration and damping force at the step's end, where the midpoint rule
             // has none of its own: what the records, the next step's predictor and the
             // next stage start from.
@@ -800,7 +824,7 @@ impl Residual for StepProblem<'_, '_> {
         let (c_a, c_v) = self.coefficients();
         let nm = &mut *self.nm;
         nm.next_velocity(u, self.dt);
-        let midpoint = nm.params.scheme == Scheme::Midpoint;
+        let midpoint = nm.params.scheme.at_midpoint();
         let next = &mut nm.next;
         if midpoint {
             next.mid.iter_mut().zip(&nm.u).zip(u).for_each(|((m, a), b)| *m = 0.5 * (a + b));
@@ -811,6 +835,9 @@ impl Residual for StepProblem<'_, '_> {
                 .for_each(|((m, a), b)| *m = 0.5 * (a + b));
         }
         nm.asm.set_free(if midpoint { &next.mid } else { u });
+        if let Some(em) = &mut nm.energy_momentum {
+            em.at_midpoint(&nm.asm);
+        }
         nm.viscous.at_iterate(&nm.asm);
         let v = if midpoint { &next.v_mid } else { &next.v };
         let rest_rate = nm.actuation.as_ref().map_or(&[][..], |a| &a.rate);
@@ -820,7 +847,11 @@ impl Residual for StepProblem<'_, '_> {
             let m = nm.mass[i];
             let inertia = m * c_a * (u[i] - next.base[i]);
             let f = if midpoint { 0.5 * (nm.f[i] + next.f[i]) } else { next.f[i] };
-            r[i] = f - inertia - next.fd[i] - nm.asm.p_free(i);
+            let p = nm
+                .energy_momentum
+                .as_ref()
+                .map_or_else(|| nm.asm.p_free(i), |em| em.p_free(&nm.asm, i));
+            r[i] = f - inertia - next.fd[i] - p;
             applied = applied.max(f.abs()).max(inertia.abs());
             inertia_floor = inertia_floor.max(m * c_a * u[i].abs());
         }
@@ -852,7 +883,7 @@ impl Residual for StepProblem<'_, '_> {
         let mass_term = nm.mass.iter().fold(f64::INFINITY, |m, &mi| m.min(mi)) * (c_a + alpha_r * c_v);
         let rest_rate = nm.actuation.as_ref().map_or(&[][..], |a| &a.rate);
         let s = nm.params.equation_at();
-        let v = if nm.params.scheme == Scheme::Midpoint {
+        let v = if nm.params.scheme.at_midpoint() {
             &nm.next.v_mid
         } else {
             &nm.next.v
@@ -864,15 +895,19 @@ impl Residual for StepProblem<'_, '_> {
             scaled = ScaledSink { sink: &mut *k, by: s };
             &mut scaled
         };
+        let em = nm.energy_momentum.as_ref();
         nm.viscous
-            .assemble_tangent(&nm.asm, v, rest_rate, (c_v / s, mass_term / s), members);
+            .assemble_tangent(&nm.asm, v, rest_rate, (c_v / s, mass_term / s), em.is_none(), members);
+        if let Some(em) = em {
+            em.add_tangent(&nm.asm, k);
+        }
         for (i, m) in nm.mass.iter().enumerate() {
             k.add(i, i, m * (c_a + alpha_r * c_v));
         }
     }
 
     fn symmetric(&self) -> bool {
-        self.nm.viscous.symmetric()
+        self.nm.viscous.symmetric() && self.nm.energy_momentum.is_none()
     }
 }
 
@@ -1032,6 +1067,27 @@ mod tests {
                 nm.params.scheme = Scheme::Midpoint;
                 nm.predict(0.01, &|t, f| f.iter_mut().for_each(|fi| *fi = t));
                 assert_step_jacobian(nm, tangent, symmetric_below);
+            });
+        }
+    }
+
+    /// The energy–momentum step tangent (its members' S d_mid block, exact and not
+    /// symmetric, plus the damping's at x_{n+½}, halved) against central differences, as
+    /// [`midpoint_step_jacobian_matches_finite_differences`].
+    #[test]
+    fn energy_momentum_step_jacobian_matches_finite_differences() {
+        for (tangent, actuate) in [
+            (DampingTangent::Objective, false),
+            (DampingTangent::Objective, true),
+            (DampingTangent::Initial, false),
+            (DampingTangent::LastConverged, true),
+        ] {
+            moving_prism(tangent, actuate, |nm| {
+                nm.params.scheme = Scheme::EnergyMomentum;
+                nm.energy_momentum = Some(EnergyMomentum::new(&nm.asm));
+                nm.energy_momentum.as_mut().unwrap().start_step(&nm.asm);
+                nm.predict(0.01, &|t, f| f.iter_mut().for_each(|fi| *fi = t));
+                assert_step_jacobian(nm, tangent, 0.0);
             });
         }
     }

@@ -195,16 +195,18 @@ impl Viscous {
         }
     }
 
-    /// K_T of `asm` and the β term's derivative in the step matrix, c_v = γ/(βΔt) the
-    /// velocity's derivative: β c_v K_T(damping states) for the paper's variants (for
-    /// `Current` less ∂K_T/∂x · v), the exact objective block otherwise, or its symmetric part
-    /// where the skew part is small against `mass_term` (the step matrix's least mass entry).
+    /// K_T of `asm` (unless `elastic` is false: the energy–momentum form brings its own)
+    /// and the β term's derivative in the step matrix, c_v = γ/(βΔt) the velocity's
+    /// derivative: β c_v K_T(damping states) for the paper's variants (for `Current` less
+    /// ∂K_T/∂x · v), the exact objective block otherwise, or its symmetric part where the
+    /// skew part is small against `mass_term` (the step matrix's least mass entry).
     pub(super) fn assemble_tangent(
         &mut self,
         asm: &Assembly,
         v: &[f64],
         rest_rate: &[f64],
         (c_v, mass_term): (f64, f64),
+        elastic: bool,
         k: &mut dyn TangentSink,
     ) {
         let (model, dofs, beta) = (asm.model, asm.dofs, self.rayleigh.beta);
@@ -220,7 +222,9 @@ impl Viscous {
                     rest_rate,
                 };
                 o.symmetric_step = damping.skew_bound(&mut o.node_skew) <= o.symmetric_below * mass_term;
-                assemble_tangents(model, dofs, &[(&asm.states, 1.0)], k);
+                if elastic {
+                    assemble_tangents(model, dofs, &[(&asm.states, 1.0)], k);
+                }
                 damping.add_jacobian(c_v, o.symmetric_step, k);
             }
             StiffnessTerm::Tangent(t) => {
@@ -229,7 +233,8 @@ impl Viscous {
                 } else {
                     &t.states
                 };
-                assemble_tangents(model, dofs, &[(&asm.states, 1.0), (states, beta * c_v)], k);
+                let terms = [(&asm.states[..], 1.0), (states, beta * c_v)];
+                assemble_tangents(model, dofs, &terms[usize::from(!elastic)..], k);
             }
         }
     }

@@ -11,6 +11,7 @@
 mod assembly;
 mod damping;
 mod dofs;
+mod energy_momentum;
 
 pub use assembly::Assembly;
 pub use damping::{
@@ -18,6 +19,7 @@ pub use damping::{
     MemberDamping, ObjectiveDamping,
 };
 pub use dofs::DofMap;
+pub use energy_momentum::{DiscreteGradient, EnergyMomentum};
 
 use crate::law::ForceLaw;
 use crate::model::Model;
