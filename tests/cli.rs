@@ -305,7 +305,8 @@ fn a_time_step_is_a_number_or_auto() {
     );
 }
 
-/// `scheme: midpoint` has no β, γ: one given is named at its line, with the two ways out.
+/// `scheme: midpoint` has no β, γ and takes fixed steps: a β or `dt: auto` given is named
+/// at its line, with the two ways out.
 #[test]
 fn the_midpoint_rule_takes_no_newmark_parameters() {
     let good = std::fs::read_to_string(SWEEP).unwrap();
@@ -320,6 +321,13 @@ fn the_midpoint_rule_takes_no_newmark_parameters() {
             err.contains(&at(&path, &text, "newmark_beta: 0.3"))
                 && err.contains("`deployment.newmark_beta`: applies to `scheme: newmark`")
                 && err.contains("remove `newmark_beta`, or set `scheme: newmark`"),
+            "{scheme}: {err}"
+        );
+        let text = good.replace("duration: 0.1\n", &format!("duration: 0.1\n  scheme: {scheme}\n  dt: auto\n"));
+        let (out, path) = bad_config(&text);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&at(&path, &text, "dt: auto")) && err.contains("`deployment.dt`: `auto` applies to `scheme: newmark`"),
             "{scheme}: {err}"
         );
     }

@@ -9,6 +9,7 @@ mod common;
 
 use nalgebra::Vector3;
 use tsim::config::{parse_case, CaseConfig, TimeStep};
+use tsim::dynamics::Scheme;
 use tsim::pipeline::run_case;
 use tsim::record::{Constraints, Frame, ModelRecord, RecordResult, Recorder, Stage};
 
@@ -144,4 +145,41 @@ fn total_strut_forces_converge_at_second_order_in_dt() {
     }
     // Far from converged at the shipped step: measured 47 %.
     assert!(error_at_half_ms(&elastic) > 0.1, "{elastic:?}");
+}
+
+/// The energy–momentum form (`scheme: energy_momentum`) balances the step at its midpoint;
+/// its recorded end forces are the elastic force of the end state and the viscous force
+/// extrapolated from the balanced midpoints (`dynamics::MidpointEnds`: the end state's own
+/// gives the rotating struts a spurious axial rate, 10.1 kN of a 10.2 kN largest strut force
+/// at 2 ms on the whole deployment). Its largest strut compression over the launch converges
+/// at second order to Newmark's limit, and its reactions close on the recorded forces as
+/// Newmark's do ([`recorded_member_forces_balance_the_reactions`]).
+#[test]
+fn energy_momentum_strut_forces_converge_and_balance_the_reactions() {
+    let largest = |log: &Deployment| log.frames.iter().flat_map(|f| f.forces.iter()).fold(0.0_f64, |c, &n| c.max(-n));
+    let mut em = Vec::new();
+    for dt in [0.002, 0.001, 0.0005] {
+        let mut cfg = paper(dt, 0.3);
+        cfg.deployment.as_mut().unwrap().scheme = Scheme::EnergyMomentum;
+        let log = deploy(&cfg);
+        let constraints = log.constraints.as_ref().unwrap();
+        let gap = (log.frames.iter())
+            .map(|f| common::reaction_gap(&log.ends, constraints, (&f.positions, &f.forces), (&f.applied, &f.reactions)))
+            .fold(0.0_f64, f64::max);
+        em.push(largest(&log));
+        // As Newmark's: round-off of sums of forces up to ~1e3 N, 1e-9 of the largest.
+        assert!(
+            gap <= 1e-9 * em.last().unwrap(),
+            "dt {dt}: reactions off the members' forces by {gap:.3e} N"
+        );
+    }
+    let newmark = largest(&deploy(&paper(0.00025, 0.3)));
+    let ratio = (em[0] - em[1]) / (em[1] - em[2]);
+    println!("energy-momentum largest strut compression {em:?} (ratio {ratio:.2}), Newmark at 0.25 ms {newmark}");
+    // Second order: 4 per halving (measured 4.74, still closing in); 3 to 6 excludes first
+    // order (2) and third (8). At 2 ms within 1e-3 of Newmark's converged value (the
+    // issue's 1 % with a margin of 10; measured 1.4e-4; the end state's own viscous force
+    // was 13 times the force).
+    assert!((3.0..=6.0).contains(&ratio), "{em:?}, ratio {ratio:.3}");
+    assert!(((em[0] - newmark) / newmark).abs() < 1e-3, "{em:?} against {newmark}");
 }

@@ -4,6 +4,7 @@
 mod actuation;
 mod ledger;
 mod load;
+mod midpoint_ends;
 mod newmark;
 mod rayleigh;
 mod step_control;

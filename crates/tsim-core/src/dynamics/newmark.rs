@@ -1,5 +1,6 @@
 use super::actuation::Actuation;
 use super::ledger::{trapezoidal_work, Ledger};
+use super::midpoint_ends::MidpointEnds;
 use super::step_control::{AutoStep, ErrorEstimate};
 use super::viscous::Viscous;
 use super::{Energy, Rayleigh, RestSchedule};
@@ -55,6 +56,11 @@ pub struct NewmarkParams {
 /// work over a step is the energy's change, so the energy ledger closes to Newton's
 /// residual (undamped: energy conserved). The force comes from the end lengths, so a
 /// rotating strut has no chord error. Its step matrix is not symmetric (LU).
+///
+/// Both midpoint schemes balance nothing at the step's end: with objective damping the
+/// viscous forces they record there are extrapolated from the midpoints' ([`MidpointEnds`]),
+/// and they take fixed steps (the config refuses `dt: auto`, whose estimate judges the
+/// end state).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Scheme {
@@ -238,6 +244,9 @@ pub struct Newmark<'a> {
     estimate: Option<ErrorEstimate>,
     /// The members' forces over the step with `scheme: energy_momentum`.
     energy_momentum: Option<EnergyMomentum>,
+    /// The members' viscous forces at step ends with a midpoint scheme and objective
+    /// damping ([`MidpointEnds`]).
+    midpoint_ends: Option<MidpointEnds>,
 }
 
 /// A step is stopped where a cable snaps taut only beyond this fraction of either of its
@@ -273,7 +282,7 @@ impl Reached {
 }
 
 /// The free velocities `v` on every node of `out` (zero at fixed directions).
-fn node_velocities(asm: &Assembly, v: &[f64], out: &mut [Vector3<f64>]) {
+pub(super) fn node_velocities(asm: &Assembly, v: &[f64], out: &mut [Vector3<f64>]) {
     out.fill(Vector3::zeros());
     for (i, &vi) in v.iter().enumerate() {
         let (n, a) = asm.dofs.owner(i);
@@ -285,7 +294,11 @@ fn node_velocities(asm: &Assembly, v: &[f64], out: &mut [Vector3<f64>]) {
 /// velocities `v`, into `e.forces`, with its round-off into `e.noise` for a step whose
 /// velocity coefficient is `c_v` = γ/(βΔt): 4 ε of the force, and the viscous part's, β_R (dN/dl)
 /// times the velocity's round-off c_v · 4 ε · (model size) (coordinates carry ε of the
-/// model's size; the velocity differences them over Δt).
+/// model's size; the velocity differences them over Δt). A midpoint scheme's are the end
+/// state's, not the ones it records ([`MidpointEnds`]): these carry its stiff members'
+/// spurious axial rate, which steps must resolve where they change size (extrapolated,
+/// steps grew to 8 ms on the paper deployment, and where they then fell to 8e-8 s the
+/// struts' undamped end-state error rang out as an 18.9 kN transient).
 fn total_forces(asm: &Assembly, viscous: &Viscous, rest_rate: &[f64], (v, c_v): (&[f64], f64), e: &mut ErrorEstimate) {
     node_velocities(asm, v, &mut e.velocities);
     viscous.member_axial(asm, rest_rate, &e.velocities, &mut e.forces);
@@ -416,7 +429,11 @@ impl<'a> Newmark<'a> {
             },
             estimate,
             energy_momentum,
+            midpoint_ends: None,
         };
+        if params.scheme.at_midpoint() && damping.tangent == DampingTangent::Objective {
+            s.midpoint_ends = Some(MidpointEnds::new(&s.asm, &s.viscous, s.rest_rate(), &s.v));
+        }
         s.consistent_acceleration();
         s.restart_estimate(true);
         s.ledger = Ledger::start(s.kinetic_energy(), s.asm.strain_energy());
@@ -428,11 +445,15 @@ impl<'a> Newmark<'a> {
         self.actuation.as_ref().map_or(&[], |a| &a.rate)
     }
 
-    /// The damping force at the current state and velocities, and the acceleration
-    /// a = M⁻¹(f − f_d − p) that satisfies the equation of motion with it.
+    /// The damping force at the current state and velocities (a midpoint scheme's: its
+    /// extrapolated end forces), and the acceleration a = M⁻¹(f − f_d − p) that satisfies
+    /// the equation of motion with it.
     fn consistent_acceleration(&mut self) {
         let rest_rate = self.actuation.as_ref().map_or(&[][..], |a| &a.rate);
-        self.viscous.force(&self.asm, &self.mass, &self.v, rest_rate, &mut self.fd);
+        match &mut self.midpoint_ends {
+            Some(ends) => ends.damping_force(&self.asm, (self.viscous.rayleigh.alpha, &self.mass, &self.v), &mut self.fd),
+            None => self.viscous.force(&self.asm, &self.mass, &self.v, rest_rate, &mut self.fd),
+        }
         for i in 0..self.mass.len() {
             self.a[i] = (self.f[i] - self.fd[i] - self.asm.p_free(i)) / self.mass[i];
         }
@@ -448,6 +469,9 @@ impl<'a> Newmark<'a> {
     fn actuate(&mut self, t_next: f64) {
         let Some(a) = &mut self.actuation else { return };
         if a.jumps_at(self.time) {
+            if let Some(ends) = &mut self.midpoint_ends {
+                ends.restart();
+            }
             self.consistent_acceleration();
         }
         if let Some(a) = &mut self.actuation {
@@ -487,7 +511,7 @@ impl<'a> Newmark<'a> {
 
     /// The stiffness-proportional (β) damping force of the last converged step on all 3n
     /// node directions into `out`, as its equation had it (member states, moduli or βK
-    /// blocks): on the free directions it is the β part of the damping force the step
+    /// blocks; a midpoint scheme's extrapolated end forces, [`MidpointEnds`]): on the free directions it is the β part of the damping force the step
     /// balanced, on the supported ones what the members' damping forces put into the
     /// supports. The αM part acts on the free directions only (a support does not move
     /// relative to the base). Summed over `members` only (model order): a direction gets its
@@ -495,14 +519,21 @@ impl<'a> Newmark<'a> {
     /// velocities `v` on the nodes (zero at fixed directions).
     pub fn member_damping_force(&self, members: &[usize], velocities: &[Vector3<f64>], out: &mut [f64]) {
         out.fill(0.0);
-        self.viscous.member_force(&self.asm, members, self.rest_rate(), velocities, out);
+        match &self.midpoint_ends {
+            Some(ends) => ends.member_forces(&self.asm, members, out),
+            None => self.viscous.member_force(&self.asm, members, self.rest_rate(), velocities, out),
+        }
     }
 
     /// The members' viscous axial forces at the last converged step into `out` [N], at node
     /// `velocities` (the step's `v`, zero at fixed directions), as the step's equation had
-    /// them ([`member_axial_damping`](crate::tsm::member_axial_damping)).
+    /// them ([`member_axial_damping`](crate::tsm::member_axial_damping)), or a midpoint
+    /// scheme's extrapolated ones ([`MidpointEnds`]).
     pub fn member_viscous_forces(&self, velocities: &[Vector3<f64>], out: &mut [f64]) {
-        self.viscous.member_axial(&self.asm, self.rest_rate(), velocities, out);
+        match &self.midpoint_ends {
+            Some(ends) => out.copy_from_slice(&ends.end),
+            None => self.viscous.member_axial(&self.asm, self.rest_rate(), velocities, out),
+        }
     }
 
     /// |KE + SE + D − W − W_a − E0| (W_a: the actuators' work, E0: KE + SE at the start):
@@ -710,6 +741,9 @@ impl<'a> Newmark<'a> {
         if self.viscous.start_step(&self.asm) {
             // A cable damped from here on: the damping force jumps at this step's start, and
             // the step starts from the acceleration just after (as at an actuator's kink).
+            if let Some(ends) = &mut self.midpoint_ends {
+                ends.restart();
+            }
             self.consistent_acceleration();
             self.restart_estimate(false);
         }
@@ -732,6 +766,10 @@ impl<'a> Newmark<'a> {
         self.ws = Some(ws);
         match result {
             Ok(report) => {
+                if let Some(ends) = &mut self.midpoint_ends {
+                    let rest_rate = self.actuation.as_ref().map_or(&[][..], |a| &a.rate);
+                    ends.solve(&self.asm, &self.viscous, rest_rate, &self.next.v_mid);
+                }
                 if self.params.scheme.at_midpoint() {
                     self.end_midpoint_step(&trial, dt);
                 }
@@ -787,6 +825,9 @@ impl<'a> Newmark<'a> {
         self.time += dt;
         self.viscous.step_committed();
         let actuation = self.actuation.as_mut().map_or(0.0, |a| a.commit(&self.asm));
+        if let Some(ends) = &mut self.midpoint_ends {
+            ends.commit(self.time - 0.5 * dt, self.time);
+        }
         if self.params.scheme.at_midpoint() {
             // The acceleration and damping force at the step's end, where the midpoint rule
             // has none of its own: what the records, the next step's predictor and the

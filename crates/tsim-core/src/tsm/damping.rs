@@ -270,6 +270,9 @@ pub enum MemberDamping<'a> {
     /// [`block_product`]'s: the member's block of β K (from [`scaled_blocks`]) times its
     /// relative velocity.
     Blocks(&'a [Matrix3<f64>]),
+    /// Given axial forces [N] along each member (the midpoint schemes' step ends:
+    /// `dynamics::Newmark`).
+    Axial(&'a [f64]),
 }
 
 /// out (over all 3n node directions, supported ones included) += the stiffness-proportional
@@ -317,5 +320,6 @@ fn member_damping(model: &Model, e: usize, states: &[MemberState], damping: Memb
             s.dir * axial_damping(s, &moduli[e], beta, elastic_rate(s, &w, rest_rate, e)).0
         }
         MemberDamping::Blocks(blocks) => blocks[e] * w,
+        MemberDamping::Axial(forces) => states[e].dir * forces[e],
     }
 }
