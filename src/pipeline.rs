@@ -114,7 +114,7 @@ fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSumma
         structure.struts = None;
     }
     summary.substitution = SubstitutionSummary::new(&structure, &unloaded)?;
-    summary.substitution.require_stable(cfg.substitution.allow_unstable)?;
+    (summary.substitution).require_stable(cfg.substitution.allow_unstable, cfg.formfinding.is_some())?;
     let plan = cfg.stage_plan(&model)?;
     let analysis = analyse(&structure, &unloaded);
     summary.structure_analysis = rigidity::Summary::new(&analysis);

@@ -8,6 +8,7 @@ use nalgebra::Vector3;
 use tsim::config::parse_case;
 use tsim::pipeline::{run_case, CaseSummary};
 use tsim::record::{Constraints, EigenRecord, Frame, ModelRecord, RecordResult, Recorder, Stage};
+use tsim::stage::substitute::Verdict;
 
 /// What a case records: the lumped masses, the eigenvalues, each frame of the stage
 /// `stage` (time, positions, velocities).
@@ -458,6 +459,55 @@ stages:
         "{err}"
     );
     assert!(!log.omega2.is_empty(), "the eigen stage ran");
+}
+
+/// Substitution's stability verdict: two bars in line between pins, their middle node free
+/// in their plane: along them it has the bars' axial stiffness, across them 2N/l (N the
+/// bars' force). Compressed (rest
+/// lengths 1 mm longer than the 1 m spacing) it is negative: "not stable", with the remedy
+/// for a model given with rest lengths (no `prestress_scale`, which needs form-finding);
+/// unstressed it is zero, within round-off: "indeterminate at round-off"; in tension the
+/// case runs.
+#[test]
+fn substitution_tells_unstable_from_indeterminate() {
+    let line = |rest: f64| {
+        format!(
+            "name: line
+model:
+  nodes:
+    - {{ id: a, xyz: [0, 0, 0], fix: [x, y, z] }}
+    - {{ id: b, xyz: [1, 0, 0], fix: [z] }}
+    - {{ id: c, xyz: [2, 0, 0], fix: [x, y, z] }}
+  members:
+    - {{ id: ab, nodes: [a, b], kind: strut, rest_length: {rest} }}
+    - {{ id: bc, nodes: [b, c], kind: strut, rest_length: {rest} }}
+substitution: {{ strut: steel, cable: steel }}
+stages:
+  - name: modes
+    eigen: {{}}
+"
+        )
+    };
+    let run = |rest: f64| {
+        let cfg = parse_case(&line(rest), "line.yaml").unwrap_or_else(|e| panic!("{e}"));
+        run_case(&cfg, &mut Log::default())
+    };
+    let compressed = run(1.001).unwrap_err().to_string();
+    assert!(
+        compressed.starts_with("substitution: the real structure is not stable")
+            && compressed.contains("node `b` direction y")
+            && compressed.contains("shorter cable rest lengths")
+            && !compressed.contains("prestress_scale"),
+        "{compressed}"
+    );
+    let unstressed = run(1.0).unwrap_err().to_string();
+    println!("{compressed}\n{unstressed}");
+    assert!(
+        unstressed.starts_with("substitution: the real structure's stability is indeterminate at round-off"),
+        "{unstressed}"
+    );
+    let summary = run(0.999).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(summary.substitution.stability, Verdict::Stable);
 }
 
 /// The free prism's spin ([`free_prism_case`]) by the energy–momentum form

@@ -64,10 +64,17 @@ pub struct SubstitutionSummary {
     pub lowest_stiffness: f64,
     /// The direction its eigenvector moves most ("node `t3` direction z").
     pub lowest_stiffness_at: String,
-    /// K_T positive definite beyond round-off: the lowest eigenvalue above 1e3 ε times the
-    /// largest diagonal entry (an eigenvalue of a symmetric matrix is resolved to ~ε‖K‖;
-    /// a prestress-stabilised mechanism of the paper's tower sits ~1e5 times above that).
+    /// K_T positive definite beyond round-off (`stability` is `stable`).
     pub stable: bool,
+    /// Whether K_T is positive definite, as far as round-off can tell ([`Verdict`]).
+    #[serde(default)]
+    pub stability: Verdict,
+    /// The band about zero in which round-off decides the lowest eigenvalue's sign, ± this
+    /// [N/m]: 1e3 ε times K_T's largest diagonal entry (an eigenvalue of a symmetric matrix
+    /// is resolved to ~ε‖K‖; a prestress-stabilised mechanism of the paper's tower sits
+    /// ~1e5 times above it).
+    #[serde(default)]
+    pub stiffness_roundoff: f64,
     /// Sum of the lumped nodal masses [kg].
     pub total_mass: f64,
 }
@@ -86,33 +93,73 @@ impl SubstitutionSummary {
             .filter(|((m, _), _)| m.kind == MemberKind::Cable)
             .map(|((_, s), l0)| s.length / l0);
         let (lowest, at) = lowest_stiffness(&asm)?;
-        let largest = largest_diagonal(&asm);
+        let roundoff = 1e3 * f64::EPSILON * largest_diagonal(&asm);
+        let stability = Verdict::of(lowest, roundoff);
         Ok(SubstitutionSummary {
             residual: asm.max_free_residual(),
             max_force: asm.states.iter().map(|s| s.force.abs()).fold(0.0, f64::max),
             cable_stretch: stretch.fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], l| [lo.min(l), hi.max(l)]),
             lowest_stiffness: lowest,
             lowest_stiffness_at: at,
-            stable: lowest > 1e3 * f64::EPSILON * largest,
+            stable: stability == Verdict::Stable,
+            stability,
+            stiffness_roundoff: roundoff,
             total_mass: structure.masses.iter().sum(),
         })
     }
 
-    /// An error for an unstable structure, unless `allowed`: the dynamic stages would run
-    /// about a state that is not an equilibrium one can stay in (eigen analysis gives
-    /// imaginary frequencies and the Rayleigh α, β from them are NaN).
-    pub fn require_stable(&self, allowed: bool) -> Result<()> {
+    /// An error for a structure not known to be stable, unless `allowed`: the dynamic
+    /// stages would run about a state that may not be an equilibrium one can stay in
+    /// (eigen analysis gives imaginary frequencies and the Rayleigh α, β from them are
+    /// NaN). `formfound`: the prestress came from form-finding, so `prestress_scale` raises it.
+    pub fn require_stable(&self, allowed: bool, formfound: bool) -> Result<()> {
         if self.stable || allowed {
             return Ok(());
         }
+        let (lowest, at, band) = (self.lowest_stiffness, &self.lowest_stiffness_at, self.stiffness_roundoff);
+        let what = match self.stability {
+            Verdict::Indeterminate => format!(
+                "the real structure's stability is indeterminate at round-off: the lowest eigenvalue of K_T, {lowest:.3e} N/m \
+                 at {at}, lies within ±{band:.1e} N/m, where round-off on K_T's largest entries decides its sign; that motion \
+                 is held, if at all, by a stiffness too small to resolve"
+            ),
+            _ => format!("the real structure is not stable: lowest eigenvalue of K_T {lowest:.3e} N/m (round-off ±{band:.1e}), at {at}"),
+        };
+        let remedy = if formfound {
+            "raise the prestress (`substitution.prestress_scale`: the geometric stiffness grows with it), change the materials"
+        } else {
+            "raise the self-stress (shorter cable rest lengths), add members or supports that hold that motion"
+        };
         Err(Error::Stage {
             stage: "substitution".into(),
-            reason: format!(
-                "the real structure is not stable: lowest eigenvalue of K_T {:.3e} N/m, at {}; raise the prestress \
-                 (`substitution.prestress_scale`), change the materials, or set `substitution.allow_unstable: true` to run anyway",
-                self.lowest_stiffness, self.lowest_stiffness_at
-            ),
+            reason: format!("{what}; {remedy}, or set `substitution.allow_unstable: true` to run anyway"),
         })
+    }
+}
+
+/// Whether K_T at an equilibrium is positive definite, as far as round-off can tell.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// The lowest eigenvalue is above the round-off band.
+    #[default]
+    Stable,
+    /// It lies within the band: round-off, not the structure, decides its sign.
+    Indeterminate,
+    /// It lies below the band: some motion loses stiffness.
+    Unstable,
+}
+
+impl Verdict {
+    /// The verdict on a lowest eigenvalue `lowest` with round-off band ±`band` [N/m].
+    pub fn of(lowest: f64, band: f64) -> Self {
+        if lowest > band {
+            Verdict::Stable
+        } else if lowest >= -band {
+            Verdict::Indeterminate
+        } else {
+            Verdict::Unstable
+        }
     }
 }
 
