@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tsim::config::{bytes_text, json_schema, ConfigError};
 use tsim::run::{
-    collect, default_jobs, install_interrupt, interrupted, load, merge, run, submit, Expanded, OnDisk, Plan, RunOptions, Shard,
-    SubmitOptions, Tally, EXIT_INTERRUPTED,
+    collect, default_jobs, install_interrupt, interrupted, load, merge, require_matches, run, selected, submit, Expanded, OnDisk, Plan,
+    RunOptions, Shard, SubmitOptions, Tally, EXIT_INTERRUPTED,
 };
 
 /// A write to stdout, with a reader that stopped early (`| head`: a closed pipe) taken
@@ -73,7 +73,8 @@ enum Command {
         quiet: bool,
         /// Run only the cases whose id matches (a glob such as `strut-steel_*`, or a
         /// substring; repeatable). Complete cases are still reused and the others are
-        /// summarized as `pending`; with --force the matching ones are rerun.
+        /// summarized as `pending`; with --force the matching ones are rerun. A pattern
+        /// that matches no case is an error (`tsim check --only` previews a selection).
         #[arg(long, value_name = "PATTERN")]
         only: Vec<String>,
         /// Lift the limits on estimated output (per run), peak memory (per case) and steps
@@ -142,6 +143,9 @@ enum Command {
         /// Lift the limits on estimated output, peak memory and steps, as `run` would.
         #[arg(long)]
         allow_large: bool,
+        /// List only the cases whose id matches, as `run --only` would select them.
+        #[arg(long, value_name = "PATTERN")]
+        only: Vec<String>,
     },
 }
 
@@ -286,7 +290,12 @@ fn main() -> ExitCode {
             clap_complete::generate(shell, &mut Cli::command(), "tsim", &mut std::io::stdout());
             ExitCode::SUCCESS
         }
-        Command::Check { config, out, allow_large } => check_command(&config, &out, allow_large),
+        Command::Check {
+            config,
+            out,
+            allow_large,
+            only,
+        } => check_command(&config, &out, allow_large, &only),
         Command::Run {
             config,
             out,
@@ -331,7 +340,7 @@ fn schema_command(out: Option<&Path>) -> ExitCode {
 }
 
 /// `tsim check`: each case's id, what is on disk for it and its estimates, then the run's.
-fn check_command(config: &Path, out: &Path, allow_large: bool) -> ExitCode {
+fn check_command(config: &Path, out: &Path, allow_large: bool, only: &[String]) -> ExitCode {
     let expanded = match load(config, allow_large) {
         Ok(x) => x,
         Err(e) => {
@@ -339,7 +348,11 @@ fn check_command(config: &Path, out: &Path, allow_large: bool) -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    match unless_closed(print_check(config, out, &expanded, &mut std::io::stdout().lock())) {
+    if let Err(e) = require_matches(only, &ids(&expanded.cases), config) {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
+    match unless_closed(print_check(config, out, &expanded, only, &mut std::io::stdout().lock())) {
         Err(e) => {
             eprintln!("error: cannot write the listing: {e}");
             ExitCode::from(2)
@@ -348,14 +361,22 @@ fn check_command(config: &Path, out: &Path, allow_large: bool) -> ExitCode {
     }
 }
 
-/// The listing of `tsim check` into `w`.
-fn print_check(config: &Path, out: &Path, expanded: &Expanded, w: &mut impl std::io::Write) -> std::io::Result<()> {
+/// The ids of `cases`.
+fn ids(cases: &[tsim::run::Case]) -> Vec<&str> {
+    cases.iter().map(|c| c.id.as_str()).collect()
+}
+
+/// The listing of `tsim check` into `w`: the cases `only` selects (all without it).
+fn print_check(config: &Path, out: &Path, expanded: &Expanded, only: &[String], w: &mut impl std::io::Write) -> std::io::Result<()> {
     let Expanded { name, cases, limits } = expanded;
     let dir = out.join(name);
-    writeln!(w, "{}: {} case(s) into {}/", config.display(), cases.len(), dir.display())?;
+    let all = cases.len();
+    let cases: Vec<&tsim::run::Case> = cases.iter().filter(|c| selected(&c.id, only)).collect();
+    let of = if cases.len() < all { format!(" of {all}") } else { String::new() };
+    writeln!(w, "{}: {}{of} case(s) into {}/", config.display(), cases.len(), dir.display())?;
     let width = cases.iter().map(|c| c.id.len()).max().unwrap_or(0);
     let mut counts = std::collections::BTreeMap::new();
-    for c in cases {
+    for c in &cases {
         let state = OnDisk::of(c, &dir.join(&c.id)).as_str();
         *counts.entry(state).or_insert(0) += 1;
         writeln!(
@@ -385,7 +406,7 @@ fn print_check(config: &Path, out: &Path, expanded: &Expanded, w: &mut impl std:
         bytes_text(memory),
         limit(limits.max_memory)
     )?;
-    let tables = distinct_tables(cases);
+    let tables = distinct_tables(&cases);
     if !tables.is_empty() {
         let points: usize = tables.iter().map(|t| t.len()).sum();
         writeln!(
@@ -399,7 +420,7 @@ fn print_check(config: &Path, out: &Path, expanded: &Expanded, w: &mut impl std:
 }
 
 /// The time tables of `cases`, each once however many cases share it.
-fn distinct_tables(cases: &[tsim::run::Case]) -> Vec<tsim::config::TablePoints> {
+fn distinct_tables(cases: &[&tsim::run::Case]) -> Vec<tsim::config::TablePoints> {
     let mut seen = std::collections::HashSet::new();
     cases
         .iter()
@@ -419,6 +440,10 @@ fn run_command(config: &Path, allow_large: bool, opts: &RunOptions) -> ExitCode 
             return ExitCode::from(2);
         }
     };
+    if let Err(e) = require_matches(&opts.only, &ids(&cases), config) {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     if let Err(e) = install_interrupt() {
         eprintln!("warning: cannot handle SIGINT/SIGTERM ({e}); an interrupted run leaves its files marked running");
     }

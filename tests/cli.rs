@@ -1283,6 +1283,44 @@ fn only_runs_some_cases_and_check_shows_where_each_stands() {
     assert!(outcomes(out).iter().all(|c| c["status"] == "complete"));
 }
 
+/// `--only` that selects nothing is a typo, not a run: `run` and `check` refuse it with the
+/// pattern, the config and the closest id, exit 2, and write nothing; `check --only` lists
+/// just the cases a run with it would select.
+#[test]
+fn only_that_selects_nothing_is_refused_and_check_previews_a_selection() {
+    let out_dir = scratch("only-none");
+    let o = out_dir.path().to_str().unwrap();
+    for command in ["run", "check"] {
+        let refused = tsim(&[
+            command,
+            SWEEP,
+            "--out",
+            o,
+            "--only",
+            "cable-nylon_zeta-0.05",
+            "--only",
+            "cable-nylon_zeta-0.01",
+        ]);
+        let err = String::from_utf8_lossy(&refused.stderr);
+        assert_eq!(refused.status.code(), Some(2), "{command}: {err}");
+        assert!(
+            err.starts_with("error: `--only cable-nylon_zeta-0.01` matches none of the 4 case(s) of ")
+                && err.contains("(did you mean `cable-nylon_zeta-0.05`?)")
+                && err.contains("`tsim check "),
+            "{command}: {err}"
+        );
+    }
+    assert!(!out_dir.path().join("small").exists(), "a refused run writes nothing");
+    let check = tsim(&["check", SWEEP, "--out", o, "--only", "cable-nylon_*"]);
+    assert!(check.status.success());
+    let listed = String::from_utf8_lossy(&check.stdout);
+    let ids: Vec<&str> = (listed.lines().filter(|l| l.starts_with("  ")))
+        .filter_map(|l| l.split_whitespace().next())
+        .collect();
+    assert_eq!(ids, ["cable-nylon_zeta-0.05", "cable-nylon_zeta-0.1"], "{listed}");
+    assert!(listed.lines().next().unwrap().contains(": 2 of 4 case(s) into "), "{listed}");
+}
+
 /// `tsim completions SHELL` prints a completion script that knows the subcommands and
 /// their flags (fish spells them `-l only`); an unknown shell is a usage error.
 #[test]

@@ -50,6 +50,26 @@ pub fn selected(id: &str, patterns: &[String]) -> bool {
         })
 }
 
+/// An error naming the first of `patterns` that selects none of the cases `ids` of
+/// `config`: a run or a listing would silently leave it out (a typo, an id of another
+/// config), so it is refused.
+pub fn require_matches(patterns: &[String], ids: &[&str], config: &Path) -> Result<(), String> {
+    let Some(p) = patterns
+        .iter()
+        .find(|p| !ids.iter().any(|id| selected(id, std::slice::from_ref(p))))
+    else {
+        return Ok(());
+    };
+    let hint = crate::model::names::hint(p, ids.iter().copied());
+    let example = ids.first().map_or_else(String::new, |id| format!(", such as `{id}`"));
+    Err(format!(
+        "`--only {p}` matches none of the {} case(s) of {}{hint}; `tsim check {}` lists their ids{example}",
+        ids.len(),
+        config.display(),
+        config.display()
+    ))
+}
+
 /// Where a case stands on disk before a run, as `tsim check` lists it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OnDisk {
