@@ -1097,6 +1097,25 @@ fn yaml_errors_are_plain_words_at_file_line_col() {
         )) && plain(&err),
         "{err}"
     );
+    // A single value where a list is expected: the key and the list's form.
+    let text = good.replace("masses: paper", "masses: paper\ngravity: -9.81");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!(
+            "error: {}:8:10: `gravity` takes a list here, not a single value: its items in brackets",
+            path.display()
+        )) && plain(&err),
+        "{err}"
+    );
+    // A sweep setting misspelt: the closest key where it goes astray.
+    let text = good.replace("set: { substitution.cable: nylon }", "set: { substitution.cabel: nylon }");
+    let (out, _) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("`substitution.cabel` is not a setting of the case config (no `cabel` there; did you mean `cable`?)"),
+        "{err}"
+    );
 }
 
 /// Names that are not known get the closest known one: keys, materials, node groups, node ids.

@@ -37,6 +37,10 @@ pub fn describe(e: &Error, text: &str) -> Described {
             format!("has {len} item(s); expected {}", type_words(expected))
         }
         Error::SerdeMissingField { field, .. } => format!("missing key `{field}`"),
+        Error::Unexpected {
+            expected: "sequence start",
+            ..
+        } => list_expected(text, line),
         other => UserMessageFormatter.format_message(other).into_owned(),
     };
     Described {
@@ -85,6 +89,18 @@ fn scalar(ty: &str, token: &str) -> String {
         }
         _ => format!("`{token}` is not {want}"),
     }
+}
+
+/// A single value where a list is expected (`gravity: -9.81`): the key of the line, and
+/// the list's form.
+fn list_expected(text: &str, line: Option<usize>) -> String {
+    let key = line
+        .and_then(|l| text.lines().nth(l - 1))
+        .and_then(|l| l.trim_start().trim_start_matches("- ").split_once(':'))
+        .map(|(key, _)| key.trim())
+        .filter(|key| !key.is_empty() && !key.contains(['{', '[', ' ']));
+    let what = key.map_or_else(|| "a list".to_string(), |key| format!("`{key}` takes a list"));
+    format!("{what} here, not a single value: its items in brackets, `[a, b, c]` (a vector: `[x, y, z]`)")
 }
 
 /// A key given twice in one mapping: the line of its first use too.

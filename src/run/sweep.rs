@@ -69,10 +69,19 @@ fn json_value(v: &Value) -> ParamValue {
 fn set_path(v: &mut Value, path: &str, new: Value) -> Result<(), String> {
     let mut cur = v;
     for key in path.split('.') {
-        cur = cur
-            .as_object_mut()
-            .and_then(|o| o.get_mut(key))
-            .ok_or_else(|| format!("`{path}` is not a setting of the case config (no `{key}` there)"))?;
+        let missing = |keys: &[&str]| {
+            format!(
+                "`{path}` is not a setting of the case config (no `{key}` there{})",
+                crate::model::names::hint(key, keys.iter().copied())
+                    .replacen(" (", "; ", 1)
+                    .trim_end_matches(')')
+            )
+        };
+        cur = match cur.as_object_mut() {
+            Some(o) if o.contains_key(key) => o.get_mut(key).expect("the key is there"),
+            Some(o) => return Err(missing(&o.keys().map(String::as_str).collect::<Vec<_>>())),
+            None => return Err(missing(&[])),
+        };
     }
     *cur = new;
     Ok(())
