@@ -394,7 +394,7 @@ folding:
     let lines: Vec<&str> = err.lines().collect();
     assert_eq!(lines.len(), 2, "{err}");
     assert!(
-        lines[0].contains(&at(&path, text, "model:")) && lines[0].contains("`model`") && lines[0].contains("q"),
+        lines[0].contains(&at(&path, text, "id: c1")) && lines[0].contains("`model.members[0]`") && lines[0].contains("q"),
         "{err}"
     );
     assert!(
@@ -1338,6 +1338,42 @@ fn only_that_selects_nothing_is_refused_and_check_previews_a_selection() {
         .collect();
     assert_eq!(ids, ["cable-nylon_zeta-0.05", "cable-nylon_zeta-0.1"], "{listed}");
     assert!(listed.lines().next().unwrap().contains(": 2 of 4 case(s) into "), "{listed}");
+}
+
+/// A model's error points at the member or node it names, not at `model:`; a config with
+/// no `substitution` says so without pointing at whatever key comes last.
+#[test]
+fn model_and_section_errors_point_where_the_fix_goes() {
+    let text = "name: m
+model:
+  nodes:
+    - { id: a, xyz: [0, 0, 0], fix: [x, y, z] }
+    - { id: b, xyz: [1, 0, 0], fix: [y, z] }
+  members:
+    - { id: ab, nodes: [a, b], kind: strut, rest_length: 1.0 }
+    - { id: ac, nodes: [a, bb], kind: strut, rest_length: 1.0 }
+substitution: { strut: steel, cable: steel }
+";
+    let (out, path) = bad_config(text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!(
+            "error: {}: `model.members[1]`: member `ac` refers to unknown node `bb` (did you mean `b`?)",
+            at(&path, text, "id: ac")
+        )),
+        "{err}"
+    );
+    let text = text.replace("substitution: { strut: steel, cable: steel }\n", "");
+    let (out, path) = bad_config(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: the config has no `substitution` section: the real materials that replace the members, \
+             e.g. `substitution: {{ strut: aluminium, cable: rubber }}` (docs/config.md)",
+            path.display()
+        )
+    );
 }
 
 /// `tsim completions SHELL` prints a completion script that knows the subcommands and

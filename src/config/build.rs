@@ -67,3 +67,27 @@ impl ModelSpec {
         Ok(model)
     }
 }
+
+impl ModelSpec {
+    /// The field a model error is about, for its line: the member or node it names
+    /// (`model.members[3]`; of two, the later one), a node group, or the whole `model`
+    /// (a generated tower or grid, or an error about the model as a whole).
+    pub fn field_of(&self, e: &ModelError) -> String {
+        let member = |ids: &[&String]| {
+            let last = self.members.iter().rposition(|m| ids.contains(&&m.id));
+            last.map(|i| format!("model.members[{i}]"))
+        };
+        let node = |id: &String| {
+            let last = self.nodes.iter().rposition(|n| &n.id == id);
+            last.map(|i| format!("model.nodes[{i}]"))
+        };
+        let field = match e {
+            ModelError::UnknownNode { member: m, .. } | ModelError::ZeroLength { member: m, .. } => member(&[m]),
+            ModelError::DuplicateMember { member: m, other, .. } => member(&[m, other]),
+            ModelError::DuplicateNode { node: n } | ModelError::UnusedNode { node: n } => node(n),
+            ModelError::UnknownGroupNode { group, .. } => Some(format!("model.groups.{group}")),
+            _ => None,
+        };
+        field.unwrap_or_else(|| "model".into())
+    }
+}

@@ -14,6 +14,9 @@ pub struct Described {
 }
 
 pub fn describe(e: &Error, text: &str) -> Described {
+    if let Some(described) = missing_section(e, text) {
+        return described;
+    }
     let location = e.location().filter(|l| l.line() > 0);
     let line = location.and_then(|l| usize::try_from(l.line()).ok());
     let column = location.and_then(|l| usize::try_from(l.column()).ok());
@@ -48,6 +51,25 @@ pub fn describe(e: &Error, text: &str) -> Described {
         column,
         message: message + &quote(text, line, column),
     }
+}
+
+/// A required top-level section the config does not have: the parser notices at the end
+/// of the file and points there, at whatever key comes last, so it is said without a line.
+fn missing_section(e: &Error, text: &str) -> Option<Described> {
+    let Error::SerdeMissingField { field, .. } = e.without_snippet() else {
+        return None;
+    };
+    let what = match *field {
+        "substitution" => "the real materials that replace the members, e.g. `substitution: { strut: aluminium, cable: rubber }`",
+        "model" => "the structure: `tower`, `grid`, or `nodes` and `members`",
+        _ => return None,
+    };
+    let given = text.lines().any(|l| l.starts_with(&format!("{field}:")));
+    (!given).then(|| Described {
+        line: None,
+        column: None,
+        message: format!("the config has no `{field}` section: {what} (docs/config.md)"),
+    })
 }
 
 /// A Rust type name as a reader says it.

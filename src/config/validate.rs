@@ -261,7 +261,7 @@ impl CaseConfig {
             // Building would only restate these.
             return None;
         }
-        let model = self.model.build().map_err(|e| p.add("model", e.to_string())).ok()?;
+        let model = self.model.build().map_err(|e| p.add(self.model.field_of(&e), e.to_string())).ok()?;
         if model.support_count() == 3 * model.node_count() {
             p.add(
                 "model",
