@@ -118,6 +118,22 @@ fn sweep_runs_in_stable_order_and_resumes() {
     };
     assert_eq!(column("status"), ["complete"; 4], "{csv}");
     assert_eq!(column("run"), ["reused"; 4], "{csv}");
+    // Counts and yes/no verdicts are whole numbers (they were `1.000000e0`).
+    for name in [
+        "self_stress_states",
+        "mechanisms",
+        "internal_mechanisms",
+        "prestress_stable",
+        "super_stable",
+    ] {
+        assert!(
+            column(name)
+                .iter()
+                .all(|c| !c.is_empty() && c.chars().all(|ch| ch.is_ascii_digit())),
+            "{name}: {:?}",
+            column(name)
+        );
+    }
     let forced = tsim(&["run", SWEEP, "--out", out.to_str().unwrap(), "--force"]);
     assert!(forced.status.success());
     assert!(outcomes(out).iter().all(|o| o["status"] == "complete" && o["run"] == "computed"));

@@ -656,13 +656,25 @@ pub fn cells(o: &CaseOutcome) -> Vec<Cell> {
     ]
 }
 
+/// The columns of [`COLUMNS`] that count (states, mechanisms, events) or say yes (1) or
+/// no (0): whole numbers, written as such.
+const COUNTS: [&str; 6] = [
+    "self_stress_states",
+    "mechanisms",
+    "internal_mechanisms",
+    "prestress_stable",
+    "super_stable",
+    "clearance_events",
+];
+
 /// A cell as summary.csv writes it: numbers to 7 significant digits (wall times to the
-/// millisecond), NaN as empty, text with quotes and line breaks replaced.
+/// millisecond, counts whole), NaN as empty, text with quotes and line breaks replaced.
 fn csv_cell(column: usize, c: &Cell) -> String {
     match c {
         Cell::Number(x) if x.is_nan() => String::new(),
         // The wall times, `wall_s` to `deployment_s`.
         Cell::Number(x) if (3..=9).contains(&column) => format!("{x:.3}"),
+        Cell::Number(x) if COUNTS.contains(&COLUMNS[column].0) => format!("{x:.0}"),
         Cell::Number(x) => format!("{x:.6e}"),
         Cell::Text(t) => t.replace(['"', '\n'], "'"),
     }
