@@ -73,3 +73,19 @@ def test_wrong_keys_and_types_are_refused_by_both(schema, tsim_bin, tmp_path, wh
     path.write_text(json.dumps(config))  # JSON is YAML
     res = subprocess.run([tsim_bin, "check", path], capture_output=True, text=True)
     assert res.returncode == 2, f"tsim accepts: {what}\n{res.stdout}"
+
+
+def test_a_wrong_key_in_a_section_is_named(schema):
+    # An optional section is `if object then <section> else null`: a validator (and an
+    # editor) reports the wrong key itself, not "not valid under any of the given schemas"
+    # for the whole section, as `anyOf [section, null]` made it.
+    config = read_yaml((ROOT / "configs/paper.yaml").read_text())
+    config["folding"]["stepz"] = 3
+    errors = list(jsonschema.Draft202012Validator(schema).iter_errors(config))
+    assert [list(e.absolute_path) for e in errors] == [["folding"]]
+    assert "'stepz' was unexpected" in errors[0].message, errors[0].message
+    # An empty section (null) is still accepted, as tsim accepts it.
+    config = read_yaml((ROOT / "configs/paper.yaml").read_text())
+    config["folding"]["stepz"] = 3
+    config["folding"] = None
+    assert not list(jsonschema.Draft202012Validator(schema).iter_errors(config))
