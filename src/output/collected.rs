@@ -17,6 +17,8 @@ type Error = Box<dyn std::error::Error + Send + Sync>;
 pub enum Column {
     /// NaN where a case has none.
     Numbers(Vec<f64>),
+    /// Whole numbers (a swept axis whose labels all are: `steps: 4, 8, 16`).
+    Integers(Vec<i64>),
     Texts(Vec<String>),
 }
 
@@ -102,6 +104,7 @@ pub fn write(path: &Path, c: &Collection) -> Result<(), Error> {
     let column = |dims: &Dims, v: &Variable, coordinates: &str| -> Result<(), Error> {
         match &v.values {
             Column::Numbers(x) => dims.var(&v.name, &["case"], x, &v.units, &v.long_name)?,
+            Column::Integers(x) => dims.var(&v.name, &["case"], x, &v.units, &v.long_name)?,
             Column::Texts(t) => dims.var(&v.name, &["case"], &varlen(t)?, &v.units, &v.long_name)?,
         }
         if !coordinates.is_empty() {
@@ -161,6 +164,7 @@ pub fn write(path: &Path, c: &Collection) -> Result<(), Error> {
     }
     debug_assert!(c.vars.iter().all(|v| match &v.values {
         Column::Numbers(x) => x.len() == n,
+        Column::Integers(x) => x.len() == n,
         Column::Texts(t) => t.len() == n,
     }));
     Ok(())

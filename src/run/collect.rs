@@ -95,11 +95,13 @@ fn axis_coordinates(axes: &[String], outcomes: &[CaseOutcome]) -> Vec<Variable> 
     for (k, axis) in axes.iter().enumerate() {
         let labels: Vec<&str> = outcomes.iter().map(|o| o.params.get(k).map_or("", |(_, l)| l.as_str())).collect();
         let numeric = numeric_labels(labels.iter().copied());
+        let integers: Option<Vec<i64>> = labels.iter().map(|l| l.parse().ok()).collect();
         let values = labels.iter().map(|l| label_value(l, numeric));
-        let values = if numeric {
-            Column::Numbers(values.map(|v| if let ParamValue::Number(x) = v { x } else { f64::NAN }).collect())
-        } else {
-            Column::Texts(labels.iter().map(|l| l.to_string()).collect())
+        // Whole-number labels stay whole, as summary.csv writes them (`steps: 4` is not 4.0).
+        let values = match integers {
+            Some(x) => Column::Integers(x),
+            None if numeric => Column::Numbers(values.map(|v| if let ParamValue::Number(x) = v { x } else { f64::NAN }).collect()),
+            None => Column::Texts(labels.iter().map(|l| l.to_string()).collect()),
         };
         coords.push(Variable {
             name: axis.clone(),

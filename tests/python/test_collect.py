@@ -74,3 +74,26 @@ def test_collect_keeps_a_failed_case_and_lists_it(tmp_path, tsim_bin):
     assert list(failed.zeta.values) == [0.1, 0.1]
     assert failed.deployment_kinetic_energy.isnull().all()
     assert "failed" in ds.attrs["missing"]
+
+
+def test_a_whole_number_axis_stays_whole(tmp_path, tsim_bin):
+    # Folding steps 4 and 8: integers in summary.csv, and integers in collected.h5 too
+    # (they were floats there), so that a selection by `steps == 4` reads as written.
+    text = (ROOT / "tests" / "fixtures" / "small_sweep.yaml").read_text()
+    head = text.split("sweep:")[0].replace("cable: rubber }", "cable: nylon }")
+    config = tmp_path / "steps.yaml"
+    config.write_text(head + """sweep:
+  axes:
+    - name: steps
+      values:
+        - { label: "4", set: { folding.steps: 4 } }
+        - { label: "8", set: { folding.steps: 8 } }
+""")
+    subprocess.run([tsim_bin, "run", config, "--out", tmp_path, "--quiet"], check=True)
+    run_dir = tmp_path / "small"
+    subprocess.run([tsim_bin, "collect", run_dir], check=True, capture_output=True)
+    ds = xr.open_dataset(run_dir / "collected.h5", engine="h5netcdf")
+    assert ds.steps.dtype.kind == "i", ds.steps.dtype
+    assert list(ds.steps.values) == [4, 8]
+    df = pd.read_csv(run_dir / "summary.csv")
+    assert df.steps.dtype.kind == "i" and list(df.steps) == [4, 8]
