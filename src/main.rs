@@ -132,6 +132,16 @@ enum Command {
     /// Print a completion script for a shell, e.g. `tsim completions bash >
     /// ~/.local/share/bash-completion/completions/tsim`.
     Completions { shell: clap_complete::Shell },
+    /// Draw the figures of a case or sweep directory (or a result.h5) into PATH/figures, from
+    /// any directory: the figures script is built into tsim and run by Python (TSIM_PYTHON,
+    /// else the checkout's .venv, else python3, with matplotlib, xarray, h5netcdf, pandas).
+    Figures {
+        path: PathBuf,
+        /// The figures script's options: --out DIR, --svg, --dpi N, --only NAME...,
+        /// --node ID, and for a sweep --x, --y, --hue, --facet (docs/figures.md).
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        options: Vec<String>,
+    },
     /// Validate a config and list the cases it would run, with their estimated output
     /// and peak memory.
     Check {
@@ -286,6 +296,7 @@ fn main() -> ExitCode {
             sbatch,
         }),
         Command::Schema { out } => schema_command(out.as_deref()),
+        Command::Figures { path, options } => figures_command(&path, &options),
         Command::Completions { shell } => {
             clap_complete::generate(shell, &mut Cli::command(), "tsim", &mut std::io::stdout());
             ExitCode::SUCCESS
@@ -315,6 +326,24 @@ fn main() -> ExitCode {
                 shard,
             };
             run_command(&config, allow_large, &opts)
+        }
+    }
+}
+
+/// `tsim figures`: the script's own progress and paths on the terminal; exit 2 when Python
+/// cannot draw, 1 when the script fails.
+fn figures_command(path: &Path, options: &[String]) -> ExitCode {
+    eprintln!(
+        "tsim figures: drawing {} with {}",
+        path.display(),
+        tsim::run::figures::python().display()
+    );
+    match tsim::run::figures::draw(path, options, (std::process::Stdio::inherit(), std::process::Stdio::inherit())) {
+        Ok(out) if out.status.success() => ExitCode::SUCCESS,
+        Ok(_) => ExitCode::from(1),
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
         }
     }
 }

@@ -529,6 +529,30 @@ fn figures_are_optional() {
     let outcome: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("small/small/outcome.json")).unwrap()).unwrap();
     assert_eq!(outcome["status"], "complete");
     assert!(outcome["figures"].as_str().unwrap().starts_with("not drawn"), "{outcome}");
+
+    // The built-in script with a Python that cannot draw: the case completes, and the
+    // outcome and `tsim figures` (exit 2) say what is needed.
+    let python = dir.join("no-such-python");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tsim"));
+    cmd.args(["run", path.to_str().unwrap(), "--out", dir.to_str().unwrap(), "--force"])
+        .env("CI", "1")
+        .env("TSIM_PYTHON", &python)
+        .env_remove("TSIM_FIGURES")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let out = spawn(&mut cmd).wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let outcome: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("small/small/outcome.json")).unwrap()).unwrap();
+    let needs = "cannot draw the figures: it needs Python 3 with matplotlib, xarray, h5netcdf, pandas";
+    assert!(outcome["figures"].as_str().unwrap().contains(needs), "{outcome}");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tsim"));
+    cmd.args(["figures", dir.join("small/small").to_str().unwrap()])
+        .env("TSIM_PYTHON", &python)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let out = spawn(&mut cmd).wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains(needs));
 }
 
 /// Two values of one axis with the same label would share a case directory (case.yaml

@@ -638,9 +638,9 @@ pub struct OutputSpec {
     /// 0.38 (bench/outputs.md).
     #[serde(default = "default_replay_rate")]
     pub replay_rate: f64,
-    /// Draw the case's figures after it completes, with the figures script
-    /// (`scripts/figures`, or the command in `TSIM_FIGURES`). Needs Python; a failure
-    /// is noted in `outcome.json` and does not fail the case.
+    /// Draw the case's figures after it completes, as `tsim figures` does (or with the
+    /// command in `TSIM_FIGURES`). Needs Python; a failure is noted in `outcome.json` and
+    /// does not fail the case.
     #[serde(default)]
     pub figures: bool,
     /// Follow the struts' clearance at every step: the nearest pair per recorded step, and

@@ -3,6 +3,7 @@
 //! The only place that knows about files, threads and progress display.
 
 mod collect;
+pub mod figures;
 mod files;
 mod interrupt;
 mod merge;
@@ -175,7 +176,7 @@ pub struct CaseOutcome {
     pub wall_seconds: f64,
     #[serde(default)]
     pub summary: Option<CaseSummary>,
-    /// With `outputs.figures`: "written" or why not.
+    /// With `outputs.figures`: "written to <dir>" or why not.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub figures: Option<String>,
     /// The output files of a complete case, their lengths and checksums: a resume and
@@ -190,12 +191,13 @@ impl CaseOutcome {
     }
 
     /// The progress line's word for it: "complete", "skipped (complete)" (reused),
-    /// "failed: <reason>" or "interrupted".
+    /// "failed: <reason>" or "interrupted"; a computed case's figures, where they went.
     pub fn describe(&self) -> String {
+        let figures = self.figures.as_ref().map_or_else(String::new, |f| format!("; figures {f}"));
         match (self.status, self.run, &self.reason) {
             (CaseStatus::Complete, RunKind::Reused, _) => "skipped (complete)".into(),
             (CaseStatus::Failed, _, Some(reason)) => format!("failed: {reason}"),
-            (status, _, _) => status.to_string(),
+            (status, _, _) => format!("{status}{figures}"),
         }
     }
 }
@@ -409,25 +411,27 @@ fn run_one(case: &Case, dir: &Path, background: bool, progress: &Progress) -> Ca
     outcome
 }
 
-/// Runs the figures script on a finished case directory: `TSIM_FIGURES` if set, else
-/// `scripts/figures` of the working directory. Python is optional for tsim, so a missing
-/// script or a failure is reported, never fatal.
+/// Draws a finished case's figures: with the command in `TSIM_FIGURES` if set, else the
+/// figures script built into tsim ([`figures::draw`]), into `dir`/figures. Python is
+/// optional for tsim, so a missing Python or a failure is reported, never fatal.
 fn draw_figures(dir: &Path) -> String {
-    let script = std::env::var_os("TSIM_FIGURES").map_or_else(|| PathBuf::from("scripts/figures"), PathBuf::from);
-    match std::process::Command::new(&script)
-        .arg(dir)
-        .stdout(std::process::Stdio::null())
-        .output()
-    {
-        Ok(out) if out.status.success() => "written".into(),
-        Ok(out) => format!(
+    let drawn = match std::env::var_os("TSIM_FIGURES") {
+        Some(script) => std::process::Command::new(&script)
+            .arg(dir)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .output()
+            .map(|out| (out.status, out.stderr))
+            .map_err(|e| format!("cannot run {}: {e}", PathBuf::from(script).display())),
+        None => figures::draw(dir, &[], (std::process::Stdio::null(), std::process::Stdio::piped())).map(|out| (out.status, out.stderr)),
+    };
+    match drawn {
+        Ok((status, _)) if status.success() => format!("written to {}", dir.join("figures").display()),
+        Ok((_, stderr)) => format!(
             "failed: {}",
-            String::from_utf8_lossy(&out.stderr)
-                .lines()
-                .last()
-                .unwrap_or("figures script failed")
+            String::from_utf8_lossy(&stderr).lines().last().unwrap_or("figures script failed")
         ),
-        Err(e) => format!("not drawn: cannot run {}: {e}", script.display()),
+        Err(e) => format!("not drawn: {e}"),
     }
 }
 

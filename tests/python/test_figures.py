@@ -7,7 +7,9 @@ The run is tests/fixtures/small_sweep.yaml (a 3-strut prism through every stage,
 well under a second) made by the release binary; drawing takes a few seconds per case.
 """
 
+import os
 import subprocess
+import sys
 from pathlib import Path
 
 import matplotlib.image as mpimg
@@ -119,3 +121,16 @@ def test_absent_stages_are_skipped(tsim_bin, tmp_path):
     assert sorted(p.stem for p in (case / "figures").glob("*.png")) == sorted(drawn)
     for name in set(CASE_SIZES) - drawn:
         assert f"skipped {name}.png" in res.stdout
+
+
+def test_tsim_figures_draws_from_any_directory(sweep, tsim_bin, tmp_path):
+    # The script built into the binary, run from a directory with no scripts/ in it, by
+    # the Python named in TSIM_PYTHON: the case's figures, each announced with its path.
+    case = sweep / "cable-nylon_zeta-0.1"
+    out = tmp_path / "figs"
+    res = subprocess.run([tsim_bin, "figures", case, "--out", out, "--only", "formfinding", "folding"],
+                         capture_output=True, text=True, cwd=tmp_path, env={**os.environ, "TSIM_PYTHON": sys.executable})
+    assert res.returncode == 0, res.stderr
+    for name in ("formfinding", "folding"):
+        check_png(out / f"{name}.png", CASE_SIZES[name])
+        assert f"wrote {out / name}.png" in res.stdout, res.stdout
