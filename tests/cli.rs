@@ -1120,28 +1120,24 @@ fn yaml_errors_are_plain_words_at_file_line_col() {
             && plain(&err),
         "{err}"
     );
-    // An unknown key: the closest known one.
-    let text = good.replace("masses: paper", "masses: paper\nmassess: 3");
-    let (out, path) = bad_config(&text);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.starts_with(&format!(
-            "error: {}:8:1: unknown key `massess` (did you mean `masses`?)",
-            path.display()
-        )) && plain(&err),
-        "{err}"
-    );
-    // A single value where a list is expected: the key and the list's form.
-    let text = good.replace("masses: paper", "masses: paper\ngravity: -9.81");
-    let (out, path) = bad_config(&text);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.starts_with(&format!(
-            "error: {}:8:10: `gravity` takes a list here, not a single value: its items in brackets",
-            path.display()
-        )) && plain(&err),
-        "{err}"
-    );
+    // A line added after `masses:` (line 8), and the start of its error: an unknown key
+    // gets the closest known one; a single value where a list is expected, the key and
+    // the list's form.
+    for (line, expected) in [
+        ("massess: 3", "8:1: unknown key `massess` (did you mean `masses`?)"),
+        (
+            "gravity: -9.81",
+            "8:10: `gravity` takes a list here, not a single value: its items in brackets",
+        ),
+    ] {
+        let text = good.replace("masses: paper", &format!("masses: paper\n{line}"));
+        let (out, path) = bad_config(&text);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.starts_with(&format!("error: {}:{expected}", path.display())) && plain(&err),
+            "{err}"
+        );
+    }
     // A sweep setting misspelt: the closest key where it goes astray.
     let text = good.replace("set: { substitution.cable: nylon }", "set: { substitution.cabel: nylon }");
     let (out, _) = bad_config(&text);
