@@ -511,9 +511,9 @@ impl<'a> Newmark<'a> {
 
     /// The stiffness-proportional (β) damping force of the last converged step on all 3n
     /// node directions into `out`, as its equation had it (member states, moduli or βK
-    /// blocks; a midpoint scheme's extrapolated end forces, [`MidpointEnds`]): on the free directions it is the β part of the damping force the step
-    /// balanced, on the supported ones what the members' damping forces put into the
-    /// supports. The αM part acts on the free directions only (a support does not move
+    /// blocks; a midpoint scheme's extrapolated end forces, [`MidpointEnds`]): on the free
+    /// directions it is the β part of the damping force the step balanced, on the
+    /// supported ones what the members' damping forces put into the supports. The αM part acts on the free directions only (a support does not move
     /// relative to the base). Summed over `members` only (model order): a direction gets its
     /// whole force where all its node's members are among them. `velocities`: the step's
     /// velocities `v` on the nodes (zero at fixed directions).
