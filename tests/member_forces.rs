@@ -151,14 +151,22 @@ fn total_strut_forces_converge_at_second_order_in_dt() {
 /// its recorded end forces are the elastic force of the end state and the viscous force
 /// extrapolated from the balanced midpoints (`dynamics::MidpointEnds`: the end state's own
 /// gives the rotating struts a spurious axial rate, 10.1 kN of a 10.2 kN largest strut force
-/// at 2 ms on the whole deployment). Its largest strut compression over the launch converges
-/// at second order to Newmark's limit, and its reactions close on the recorded forces as
-/// Newmark's do ([`recorded_member_forces_balance_the_reactions`]).
+/// at 2 ms on the whole deployment). Its largest strut compression over the launch and its
+/// reactions during it converge at second order to Newmark's limit, and the reactions close
+/// on the recorded forces as Newmark's do ([`recorded_member_forces_balance_the_reactions`]).
 #[test]
 fn energy_momentum_strut_forces_converge_and_balance_the_reactions() {
     let largest = |log: &Deployment| log.frames.iter().flat_map(|f| f.forces.iter()).fold(0.0_f64, |c, &n| c.max(-n));
-    let mut em = Vec::new();
-    for dt in [0.002, 0.001, 0.0005] {
+    // The supports' reactions at t = 0.1 s, every Δt's grid point, during the launch.
+    let reaction = |log: &Deployment| {
+        let f = (log.frames.iter())
+            .min_by(|a, b| (a.time - 0.1).abs().total_cmp(&(b.time - 0.1).abs()))
+            .unwrap();
+        assert!((f.time - 0.1).abs() < 1e-9);
+        f.reactions.clone()
+    };
+    let (mut em, mut reactions) = (Vec::new(), Vec::new());
+    for dt in [0.002, 0.001, 0.0005, 0.00025] {
         let mut cfg = paper(dt, 0.3);
         cfg.deployment.as_mut().unwrap().scheme = Scheme::EnergyMomentum;
         let log = deploy(&cfg);
@@ -167,19 +175,34 @@ fn energy_momentum_strut_forces_converge_and_balance_the_reactions() {
             .map(|f| common::reaction_gap(&log.ends, constraints, (&f.positions, &f.forces), (&f.applied, &f.reactions)))
             .fold(0.0_f64, f64::max);
         em.push(largest(&log));
+        reactions.push(reaction(&log));
         // As Newmark's: round-off of sums of forces up to ~1e3 N, 1e-9 of the largest.
         assert!(
             gap <= 1e-9 * em.last().unwrap(),
             "dt {dt}: reactions off the members' forces by {gap:.3e} N"
         );
     }
-    let newmark = largest(&deploy(&paper(0.00025, 0.3)));
-    let ratio = (em[0] - em[1]) / (em[1] - em[2]);
-    println!("energy-momentum largest strut compression {em:?} (ratio {ratio:.2}), Newmark at 0.25 ms {newmark}");
-    // Second order: 4 per halving (measured 4.74, still closing in); 3 to 6 excludes first
-    // order (2) and third (8). At 2 ms within 1e-3 of Newmark's converged value (the
-    // issue's 1 % with a margin of 10; measured 1.4e-4; the end state's own viscous force
-    // was 13 times the force).
-    assert!((3.0..=6.0).contains(&ratio), "{em:?}, ratio {ratio:.3}");
+    let newmark = deploy(&paper(0.00025, 0.3));
+    let (newmark, newmark_reactions) = (largest(&newmark), reaction(&newmark));
+    let ratios = |d: &[f64]| d.windows(2).map(|w| w[0] / w[1]).collect::<Vec<f64>>();
+    let force_ratios = ratios(&em.windows(2).map(|w| (w[0] - w[1]).abs()).collect::<Vec<_>>());
+    // Reactions: the largest change over the supports per halving.
+    let change = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    let reaction_ratios = ratios(&reactions.windows(2).map(|w| change(&w[0], &w[1])).collect::<Vec<_>>());
+    let off = change(&reactions[3], &newmark_reactions);
+    println!(
+        "energy-momentum largest strut compression {em:?} (ratios {force_ratios:.2?}; Newmark at 0.25 ms {newmark}); \
+         reactions at 0.1 s: ratios {reaction_ratios:.2?} per halving, {off:.1e} N from Newmark's at 0.25 ms"
+    );
+    // Second order: 4 per halving (measured 4.74, 4.86 for the compression, 4.08, 3.84 for
+    // the reactions); 3 to 6 excludes first order (2) and third (8). (The largest reaction
+    // over the run is no measure of order: it falls on a corner of the reaction's history
+    // at 0.119 s, which the steps sample at first order under Newmark too.) At 2 ms the
+    // compression is within 1e-3 of Newmark's converged value (the issue's 1 % with a
+    // margin of 10; measured 1.4e-4; the end state's own viscous force was 13 times the force).
+    assert!(
+        force_ratios.iter().chain(&reaction_ratios).all(|r| (3.0..=6.0).contains(r)),
+        "{force_ratios:?}, {reaction_ratios:?}"
+    );
     assert!(((em[0] - newmark) / newmark).abs() < 1e-3, "{em:?} against {newmark}");
 }
