@@ -1371,7 +1371,7 @@ fn only_that_selects_nothing_is_refused_and_check_previews_a_selection() {
 }
 
 /// A model's error points at the member or node it names, not at `model:`; a config with
-/// no `substitution` says so without pointing at whatever key comes last.
+/// no `substitution` says so at its first line, not at whatever key comes last.
 #[test]
 fn model_and_section_errors_point_where_the_fix_goes() {
     let text = "name: m
@@ -1399,7 +1399,7 @@ substitution: { strut: steel, cable: steel }
     assert_eq!(
         err.trim_end(),
         format!(
-            "error: {}: the config has no `substitution` section: the real materials that replace the members, \
+            "error: {}:1: the config has no `substitution` section: the real materials that replace the members, \
              e.g. `substitution: {{ strut: aluminium, cable: rubber }}` (docs/config.md)",
             path.display()
         )

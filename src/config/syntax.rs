@@ -54,7 +54,8 @@ pub fn describe(e: &Error, text: &str) -> Described {
 }
 
 /// A required top-level section the config does not have: the parser notices at the end
-/// of the file and points there, at whatever key comes last, so it is said without a line.
+/// of the file and points there, at whatever key comes last; it is said of the config as a
+/// whole, at its first line.
 fn missing_section(e: &Error, text: &str) -> Option<Described> {
     let Error::SerdeMissingField { field, .. } = e.without_snippet() else {
         return None;
@@ -66,7 +67,7 @@ fn missing_section(e: &Error, text: &str) -> Option<Described> {
     };
     let given = text.lines().any(|l| l.starts_with(&format!("{field}:")));
     (!given).then(|| Described {
-        line: None,
+        line: Some(1),
         column: None,
         message: format!("the config has no `{field}` section: {what} (docs/config.md)"),
     })
