@@ -84,6 +84,11 @@ def note(msg):
 # ----------------------------------------------------------------------------- reading
 
 
+# The paper's 2-stage tower of 5-strut prisms in a case's resolved config (result.h5's
+# `config` attribute, as tsim serializes it).
+PAPER_TOWER = "  tower:\n    struts: 5\n    stages: 2\n    radius: 3.0\n    strut_length: 7.0\n"
+
+
 class Case:
     """The groups of one result.h5, opened with xarray (h5netcdf engine)."""
 
@@ -111,6 +116,15 @@ class Case:
         else:
             self.force_ref = None
         self.camera = self._camera()
+        with xr.open_dataset(self.path, engine="h5netcdf") as root:
+            config = str(root.attrs.get("config", ""))
+        # The paper's tower (configs/paper.yaml, sweep.yaml and paper_literal.yaml), as tsim
+        # writes a case's resolved config: only there do titles cite the paper's figures.
+        self.paper = PAPER_TOWER in config
+
+    def ref(self, what):
+        """` (paper <what>)` where the paper is the subject, else nothing."""
+        return f" (paper {what})" if self.paper else ""
 
     def group(self, name, drop=()):
         try:
@@ -227,7 +241,7 @@ def formfinding_figure(case, dpi):
     ax = axes3d(fig, (1, 2, 2), case, BIRD, "(b) equilibrium by form-finding\n(coloured by force; initial shape dashed)")
     states = draw(ax, case, eq, case.formfinding.member_force.values, ghost=init)
     iters = case.formfinding.sizes.get("iteration", 0) - 1
-    fig.suptitle(f"Form-finding (paper Fig. 2): {iters} Newton iterations, "
+    fig.suptitle(f"Form-finding{case.ref('Fig. 2')}: {iters} Newton iterations, "
                  f"forces {case.formfinding.member_force.values.min():.3g} to {case.formfinding.member_force.values.max():.3g} N")
     legend(fig, states | {"compression", "tension"},
            [(Line2D([], [], color="#c8c8c8", ls="--"), "initial shape")])
@@ -248,7 +262,7 @@ def free_vibration_figure(case, dpi):
     ax.plot(t, ds.external_work.values, label="work of the load", color="#888888", ls="--")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("energy [J]")
-    ax.set_title(f"Free vibration energies (paper Fig. 3); strain energy at t = 0: {se0:.4g} J", fontsize=10)
+    ax.set_title(f"Free vibration energies{case.ref('Fig. 3')}; strain energy at t = 0: {se0:.4g} J", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.subplots_adjust(left=0.09, right=0.97, bottom=0.12, top=0.92)
@@ -279,7 +293,7 @@ def eigen_figure(case, dpi):
     ax.set_xlabel("mode")
     ax.set_ylabel("ω² [rad²/s²]")
     ax.grid(alpha=0.3)
-    title = "Eigenvalues (paper Table 2)"
+    title = f"Eigenvalues{case.ref('Table 2')}"
     if np.isfinite(alpha) and np.isfinite(beta):
         title += f"; Rayleigh α = {alpha:.4g}, β = {beta:.4g}"
         # Modal damping ratio the Rayleigh pair gives each mode: ζ = α/(2ω) + βω/2.
@@ -316,7 +330,7 @@ def mode_shapes_figure(case, dpi):
                     f"mode {m}{tag}: ω² = {ds.omega2.values[i]:.4g}, f = {ds.frequency.values[i]:.3g} Hz")
         ax.add_collection3d(Line3DCollection(eq[case.ends], colors="#c8c8c8", linewidths=0.8, linestyles="dashed"))
         draw(ax, case, disp, nodes=False)
-    fig.suptitle("Mode shapes over the equilibrium (paper Fig. 4); largest displacement drawn "
+    fig.suptitle(f"Mode shapes over the equilibrium{case.ref('Fig. 4')}; largest displacement drawn "
                  f"{scale_to:.3g} m, equilibrium dashed")
     fig.subplots_adjust(left=0.02, right=0.98, top=0.9, bottom=0.03, wspace=0.05, hspace=0.15)
     return fig
@@ -342,7 +356,7 @@ def folding_figure(case, dpi):
         states = draw(ax, case, frame.position.values, frame.member_force.values)
         ax = axes3d(fig, (2, 3, col + 4), case, SIDE, f"side, {label}")
         states |= draw(ax, case, frame.position.values, frame.member_force.values)
-    fig.suptitle("Folding by prescribed displacement (paper Figs 6-8)")
+    fig.suptitle(f"Folding by prescribed displacement{case.ref('Figs 6-8')}")
     fig.subplots_adjust(left=0.02, right=0.98, top=0.92, bottom=0.06, wspace=0.05, hspace=0.12)
     legend(fig, states | {"compression", "tension", "slack"})
     return fig
@@ -360,7 +374,7 @@ def deployment_snapshots_figure(case, dpi):
         frame = ds.isel(time=i)
         ax = axes3d(fig, (2, 3, k + 1), case, BIRD, f"t = {t[i]:.3g} s")
         states |= draw(ax, case, frame.position.values, frame.member_force.values)
-    fig.suptitle("Deployment (paper Fig. 11)")
+    fig.suptitle(f"Deployment{case.ref('Fig. 11')}")
     fig.subplots_adjust(left=0.02, right=0.98, top=0.92, bottom=0.06, wspace=0.05, hspace=0.12)
     legend(fig, states | {"compression", "tension", "slack"})
     return fig
@@ -381,7 +395,7 @@ def deployment_top_node_figure(case, dpi, node=None):
     ax.plot([], [], color="k", ls=":", lw=1, label="back at the equilibrium (dotted)")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("displacement since the folded state [m]")
-    ax.set_title(f"Displacement of top node {case.node_ids[i]} during deployment (paper Fig. 12)", fontsize=10)
+    ax.set_title(f"Displacement of top node {case.node_ids[i]} during deployment{case.ref('Fig. 12')}", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.subplots_adjust(left=0.09, right=0.97, bottom=0.12, top=0.92)
@@ -401,7 +415,7 @@ def deployment_energy_figure(case, dpi):
     ax.plot(t, ds.external_work.values, color="#888888", ls="--", label="work of the launch load")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("energy [J]")
-    ax.set_title("Energies under damping (paper Fig. 13)", fontsize=10)
+    ax.set_title(f"Energies under damping{case.ref('Fig. 13')}", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax = fig.add_subplot(122)

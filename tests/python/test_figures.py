@@ -7,6 +7,7 @@ The run is tests/fixtures/small_sweep.yaml (a 3-strut prism through every stage,
 well under a second) made by the release binary; drawing takes a few seconds per case.
 """
 
+import importlib.util
 import os
 import subprocess
 import sys
@@ -134,3 +135,22 @@ def test_tsim_figures_draws_from_any_directory(sweep, tsim_bin, tmp_path):
     for name in ("formfinding", "folding"):
         check_png(out / f"{name}.png", CASE_SIZES[name])
         assert f"wrote {out / name}.png" in res.stdout, res.stdout
+
+
+def load_figures_module():
+    spec = importlib.util.spec_from_file_location("figures", ROOT / "scripts" / "figures.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_titles_cite_the_paper_only_for_its_tower(sweep, tsim_bin, tmp_path):
+    # "(paper Table 2)" on a 3-strut prism misleads; on the paper's tower it is the point.
+    figures_module = load_figures_module()
+    prism = figures_module.Case(sweep / "cable-nylon_zeta-0.1" / "result.h5")
+    assert not prism.paper and prism.ref("Table 2") == ""
+    config = tmp_path / "paper.yaml"
+    config.write_text((ROOT / "configs" / "paper.yaml").read_text().replace("figures: true", "figures: false"))
+    subprocess.run([tsim_bin, "run", config, "--out", tmp_path, "--quiet"], check=True)
+    paper = figures_module.Case(tmp_path / "paper" / "paper" / "result.h5")
+    assert paper.paper and paper.ref("Table 2") == " (paper Table 2)"
