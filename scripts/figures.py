@@ -294,7 +294,9 @@ def eigen_figure(case, dpi):
     ax.set_ylabel("ω² [rad²/s²]")
     ax.grid(alpha=0.3)
     title = f"Eigenvalues{case.ref('Table 2')}"
-    if np.isfinite(alpha) and np.isfinite(beta):
+    # An eigen stage without `rayleigh` records α = β = 0: no ζ to draw (its axis was empty).
+    rayleigh = np.isfinite(alpha) and np.isfinite(beta) and (alpha != 0 or beta != 0)
+    if rayleigh:
         title += f"; Rayleigh α = {alpha:.4g}, β = {beta:.4g}"
         # Modal damping ratio the Rayleigh pair gives each mode: ζ = α/(2ω) + βω/2.
         ax2 = ax.twinx()
@@ -304,7 +306,7 @@ def eigen_figure(case, dpi):
         ax2.tick_params(axis="y", colors="#d08000")
         ax.plot([], [], "-", color="#fdae61", label="ζ of the Rayleigh pair (right axis)")
     if len(dm) == 0:
-        title += " (given, no damping modes)"
+        title += " (given, no damping modes)" if rayleigh else "; no Rayleigh damping"
     ax.set_title(title, fontsize=10)
     ax.legend(fontsize=8, loc="upper left")
     fig.subplots_adjust(left=0.1, right=0.88, bottom=0.12, top=0.92)

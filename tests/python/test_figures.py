@@ -154,3 +154,16 @@ def test_titles_cite_the_paper_only_for_its_tower(sweep, tsim_bin, tmp_path):
     subprocess.run([tsim_bin, "run", config, "--out", tmp_path, "--quiet"], check=True)
     paper = figures_module.Case(tmp_path / "paper" / "paper" / "result.h5")
     assert paper.paper and paper.ref("Table 2") == " (paper Table 2)"
+
+
+def test_no_rayleigh_draws_no_damping_axis(tsim_bin, tmp_path):
+    # An eigen stage without `rayleigh` records α = β = 0; the spectrum had an empty
+    # modal-damping axis then. Now one axes, and the title says there is no damping.
+    text = (ROOT / "tests" / "fixtures" / "small_sweep.yaml").read_text().split("masses:")[0] + "eigen: {}\n"
+    config = tmp_path / "eigen_only.yaml"
+    config.write_text(text)
+    subprocess.run([tsim_bin, "run", config, "--out", tmp_path, "--quiet"], check=True)
+    figures_module = load_figures_module()
+    case = figures_module.Case(tmp_path / "small" / "small" / "result.h5")
+    fig = figures_module.eigen_figure(case, 100)
+    assert len(fig.axes) == 1 and fig.axes[0].get_title().endswith("; no Rayleigh damping"), fig.axes[0].get_title()
