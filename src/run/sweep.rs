@@ -72,9 +72,7 @@ fn set_path(v: &mut Value, path: &str, new: Value) -> Result<(), String> {
         let missing = |keys: &[&str]| {
             format!(
                 "`{path}` is not a setting of the case config (no `{key}` there{})",
-                crate::model::names::hint(key, keys.iter().copied())
-                    .replacen(" (", "; ", 1)
-                    .trim_end_matches(')')
+                crate::model::names::closest(key, keys.iter().copied()).map_or_else(String::new, |k| format!("; did you mean `{k}`?"))
             )
         };
         cur = match cur.as_object_mut() {
