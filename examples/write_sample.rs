@@ -171,6 +171,7 @@ fn write_stage(recorders: &mut [&mut dyn Recorder], model: &Model, forces: &[f64
             energy: Energy {
                 kinetic: 0.5 * s,
                 strain: 100.0 - 0.5 * s,
+                contact: 0.0,
                 damping: 0.01 * s,
                 external: 0.02 * s,
                 actuation: 0.0,
@@ -188,6 +189,7 @@ fn write_stage(recorders: &mut [&mut dyn Recorder], model: &Model, forces: &[f64
                 }),
                 events: &[],
             }),
+            contacts: &[],
         };
         each(recorders, |r| r.frame(&frame))?;
     }

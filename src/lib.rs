@@ -16,5 +16,5 @@ pub mod output;
 pub mod pipeline;
 pub mod run;
 
-pub use tsim_core::{dynamics, error, law, model, record, rigidity, solve, stage, structure, tsm};
+pub use tsim_core::{contact, dynamics, error, law, model, record, rigidity, solve, stage, structure, tsm};
 pub use tsim_core::{Error, Result};

@@ -135,6 +135,7 @@ fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSumma
     }
     // Gravity acts in every stage after the shape (a static stage steps it on).
     structure.gravity = cfg.gravity();
+    structure.contact = cfg.contact(&structure, &unloaded, &cfg.materials(&model)?.radius)?;
     let mut reached = vec![Reached {
         state: unloaded,
         dead_load: Vec::new(),

@@ -10,12 +10,25 @@ use std::path::{Path, PathBuf};
 const ALLOWED: &[(&str, &[&str])] = &[
     ("main", &["run", "config"]),
     ("run", &["pipeline", "output", "config", "record", "model"]),
-    ("output", &["config", "record", "model"]),
+    ("output", &["config", "record", "model", "contact"]),
     (
         "pipeline",
         &["config", "stage", "structure", "record", "model", "rigidity", "dynamics", "error"],
     ),
-    ("config", &["stage", "dynamics", "solve", "law", "model", "record", "error"]),
+    (
+        "config",
+        &[
+            "stage",
+            "dynamics",
+            "solve",
+            "law",
+            "model",
+            "record",
+            "contact",
+            "structure",
+            "error",
+        ],
+    ),
     (
         "stage",
         &[
@@ -31,11 +44,12 @@ const ALLOWED: &[(&str, &[&str])] = &[
         ],
     ),
     ("error", &["record", "solve", "model"]),
-    ("record", &["dynamics", "rigidity", "model"]),
-    ("structure", &["tsm", "model"]),
+    ("record", &["dynamics", "rigidity", "contact", "model"]),
+    ("structure", &["tsm", "contact", "model"]),
     ("dynamics", &["tsm", "solve"]),
     ("rigidity", &["tsm", "solve", "model"]),
-    ("tsm", &["law", "model", "solve"]),
+    ("tsm", &["law", "model", "solve", "contact"]),
+    ("contact", &["model", "solve"]),
     ("law", &[]),
     ("model", &[]),
     ("solve", &[]),

@@ -4,6 +4,7 @@
 //! field and the range, and all of them are reported, each at its line.
 
 mod build;
+mod contact;
 mod input;
 mod json_schema;
 mod kinds;
@@ -18,6 +19,7 @@ mod syntax;
 mod tables;
 mod validate;
 
+pub use contact::{ContactRadiusSpec, ContactSpec, GroundSpec};
 pub use input::{excerpt, read_input, MAX_INPUT_BYTES};
 pub use json_schema::{json_schema, SCHEMA_FILE};
 pub use kinds::{HoldSpec, RestChangeSpec};

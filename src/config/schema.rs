@@ -35,6 +35,10 @@ pub struct CaseConfig {
     /// substitution (form-finding finds a self-equilibrium, without gravity).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gravity: Option<[f64; 3]>,
+    /// Struts that cannot pass through each other or the ground, in every stage after
+    /// substitution. Absent: none (the paper's idealization).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<super::ContactSpec>,
     /// Static loads (and gravity) applied after substitution in load steps; with gravity
     /// and no `static` section, gravity alone is applied with its defaults.
     #[serde(rename = "static", default, skip_serializing_if = "Option::is_none")]

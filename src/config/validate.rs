@@ -105,6 +105,7 @@ impl CaseConfig {
             self.check_stage_list(model.as_ref(), &mut p);
         }
         self.check_loading(model.as_ref(), &mut p);
+        self.check_contact(model.as_ref(), &mut p);
         if let Some(ff) = &self.formfinding {
             check_measure(&ff.measure, &mut p);
         }

@@ -17,6 +17,7 @@
 //! recorder back and drops it, which records "failed: recorder dropped before finish" as a
 //! direct recorder would.
 
+use crate::contact::Active;
 use crate::record::{
     ClearanceEvent, Constraints, EigenRecord, Energy, FormFindRecord, Frame, FrameClearance, FrameModes, ModelRecord, Nearest, Outcome,
     RecordResult, Recorder, RigidityRecord, Stage,
@@ -277,6 +278,7 @@ pub(super) struct OwnedFrame {
     modes: Option<(Vec<f64>, Vec<Vector3<f64>>)>,
     /// (nearest pair, events) when the frame has clearance.
     clearance: Option<(Option<Nearest>, Vec<ClearanceEvent>)>,
+    contacts: Vec<Active>,
 }
 
 impl OwnedFrame {
@@ -310,6 +312,7 @@ impl OwnedFrame {
             }
             None => self.clearance = None,
         }
+        refill(&mut self.contacts, f.contacts);
     }
 
     fn from(f: &Frame) -> Self {
@@ -344,6 +347,7 @@ impl OwnedFrame {
                 .clearance
                 .as_ref()
                 .map(|(nearest, events)| FrameClearance { nearest: *nearest, events }),
+            contacts: &self.contacts,
         }
     }
 }

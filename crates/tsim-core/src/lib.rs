@@ -14,6 +14,7 @@
 // that intent rather than showing it.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod contact;
 pub mod dynamics;
 pub mod error;
 pub mod law;

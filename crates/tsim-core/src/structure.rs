@@ -3,9 +3,10 @@
 //! velocities, accelerations, time). Every stage takes a structure and a converged state
 //! and returns the converged state it ends in.
 
+use crate::contact::Contact;
 use crate::model::clearance::Struts;
 use crate::model::Model;
-use crate::tsm::{DofMap, Elements};
+use crate::tsm::{Assembly, DofMap, Elements};
 use nalgebra::Vector3;
 use std::sync::Arc;
 
@@ -27,6 +28,9 @@ pub struct Structure {
     pub dead_load: Vec<Vector3<f64>>,
     /// The struts and their radii whose clearance the stages follow (`None`: not followed).
     pub struts: Option<Arc<Struts>>,
+    /// What touches what (struts, the ground) in every stage (`None`: bodies pass
+    /// through each other).
+    pub contact: Option<Arc<Contact>>,
 }
 
 impl Structure {
@@ -39,6 +43,7 @@ impl Structure {
             gravity: Vector3::zeros(),
             dead_load: Vec::new(),
             struts: None,
+            contact: None,
         }
     }
 
@@ -51,6 +56,12 @@ impl Structure {
             masses,
             ..Structure::massless(model, elements)
         }
+    }
+
+    /// The structure evaluated at positions `x` with rest lengths `rest` on the free DOFs of
+    /// `dofs`, its contacts included: what every stage after the shape solves with.
+    pub fn assembly<'a>(&'a self, dofs: &'a DofMap, x: Vec<Vector3<f64>>, rest: &[f64]) -> Assembly<'a> {
+        Assembly::with_rest_lengths(&self.model, &self.elements, dofs, x, rest).with_contact(self.contact.as_ref())
     }
 
     /// The constant load on every node: the dead loads and the weight m g [N].

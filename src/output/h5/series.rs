@@ -62,6 +62,11 @@ fn member_and_energy_columns(g: &Dims, dynamic: bool, actuated: bool, chunk: usi
         ("member_length", "m", "member length"),
         ("kinetic_energy", "J", "kinetic energy"),
         ("strain_energy", "J", "strain energy"),
+        (
+            "contact_energy",
+            "J",
+            "barrier energy of the contacts (0 without `contact`; in static stages its change since the stage began, as strain_energy)",
+        ),
         ("damping_energy", "J", "energy dissipated by damping since the stage began"),
         (
             "external_work",
@@ -285,7 +290,7 @@ impl Series {
         }
         next().extend_from_slice(f.lengths);
         let e = f.energy;
-        for value in [e.kinetic, e.strain, e.damping, e.external] {
+        for value in [e.kinetic, e.strain, e.contact, e.damping, e.external] {
             next().push(value);
         }
         if self.actuated {

@@ -102,6 +102,7 @@ fn drive_stage(
         let energy = Energy {
             kinetic: s,
             strain: 2.0 * s,
+            contact: 6.0 * s,
             damping: 3.0 * s,
             external: 4.0 * s,
             actuation: 5.0 * s,
@@ -143,6 +144,7 @@ fn drive_stage(
                 nearest: Some(nearest),
                 events: &events,
             }),
+            contacts: &[],
         })?;
     }
     rec.end_stage(stage)

@@ -192,7 +192,7 @@ pub(super) mod msg {
         pub external: f64,
         /// Work done on the members by changing their rest lengths (actuation).
         pub actuation: f64,
-        /// kinetic + strain + damping − external − actuation: the energy balance, constant
+        /// kinetic + strain + contact + damping − external − actuation: the energy balance, constant
         /// while the integration conserves energy.
         pub total: f64,
     }

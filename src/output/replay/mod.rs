@@ -227,7 +227,7 @@ impl McapRecorder {
         self.write_buf(self.channels.scene, ns)?;
         self.log_members(stage, step, ns, forces)?;
         if let Some(e) = energy {
-            let total = e.kinetic + e.strain + e.damping - e.external - e.actuation;
+            let total = e.kinetic + e.strain + e.contact + e.damping - e.external - e.actuation;
             let energy = msg::Energy {
                 stage: stage.name().into(),
                 step: step as u64,

@@ -8,6 +8,8 @@ pub struct Energy {
     pub kinetic: f64,
     /// Strain energy of the members, Σ U(l, l0).
     pub strain: f64,
+    /// Energy of the contacts' barriers, Σ b(g) (zero without contact).
+    pub contact: f64,
     /// Dissipated by damping since the stage began.
     pub damping: f64,
     /// Work of external loads (and, in folding, of prescribed displacements) since the stage began.
@@ -17,8 +19,8 @@ pub struct Energy {
     pub actuation: f64,
 }
 
-/// The ledger since a stage began: KE + SE + D − W − W_a − E0 is zero for exact
-/// integration, E0 = KE + SE at the start.
+/// The ledger since a stage began: KE + SE + CE + D − W − W_a − E0 is zero for exact
+/// integration, E0 = KE + SE + CE at the start (CE: the contacts' barrier energy).
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Ledger {
     pub(super) energy: Energy,
@@ -26,35 +28,39 @@ pub(super) struct Ledger {
 }
 
 impl Ledger {
-    /// At the start of a stage with kinetic and strain energy `kinetic`, `strain`.
-    pub(super) fn start(kinetic: f64, strain: f64) -> Self {
+    /// At the start of a stage with kinetic, strain and contact energy `kinetic`, `strain`,
+    /// `contact`.
+    pub(super) fn start(kinetic: f64, strain: f64, contact: f64) -> Self {
         Ledger {
             energy: Energy {
                 kinetic,
                 strain,
+                contact,
                 ..Default::default()
             },
-            initial: kinetic + strain,
+            initial: kinetic + strain + contact,
         }
     }
 
-    /// A converged step reached `kinetic` and `strain`, the damping forces dissipated
-    /// `damping`, the loads did `external` and the actuators `actuation` of work over it.
-    pub(super) fn add_step(&mut self, kinetic: f64, strain: f64, damping: f64, external: f64, actuation: f64) {
+    /// A converged step reached `kinetic`, `strain` and `contact` energy, the damping forces
+    /// dissipated `damping`, the loads did `external` and the actuators `actuation` of work
+    /// over it.
+    pub(super) fn add_step(&mut self, [kinetic, strain, contact]: [f64; 3], damping: f64, external: f64, actuation: f64) {
         let e = &self.energy;
         self.energy = Energy {
             kinetic,
             strain,
+            contact,
             damping: e.damping + damping,
             external: e.external + external,
             actuation: e.actuation + actuation,
         };
     }
 
-    /// |KE + SE + D − W − W_a − E0|.
+    /// |KE + SE + CE + D − W − W_a − E0|.
     pub(super) fn balance_error(&self) -> f64 {
         let e = &self.energy;
-        (e.kinetic + e.strain + e.damping - e.external - e.actuation - self.initial).abs()
+        (e.kinetic + e.strain + e.contact + e.damping - e.external - e.actuation - self.initial).abs()
     }
 }
 

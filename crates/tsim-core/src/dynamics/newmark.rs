@@ -436,7 +436,7 @@ impl<'a> Newmark<'a> {
         }
         s.consistent_acceleration();
         s.restart_estimate(true);
-        s.ledger = Ledger::start(s.kinetic_energy(), s.asm.strain_energy());
+        s.ledger = Ledger::start(s.kinetic_energy(), s.asm.strain_energy(), s.asm.contact_energy());
         s
     }
 
@@ -606,6 +606,14 @@ impl<'a> Newmark<'a> {
                 self.a[i]
             };
             next.trial[i] = next.base[i] + beta * dt * dt * guess;
+        }
+        if self.asm.contact.is_some() {
+            // The predictor is an iterate too: no further than keeps bodies apart (`asm` is
+            // at the step's start).
+            let (u, trial) = (&self.u, &mut self.next.trial);
+            trial.iter_mut().zip(u).for_each(|(t, u)| *t -= u);
+            let tau = self.asm.admissible(trial, 1.0);
+            trial.iter_mut().zip(u).for_each(|(t, u)| *t = u + tau * *t);
         }
     }
 
@@ -834,8 +842,8 @@ impl<'a> Newmark<'a> {
             // next stage start from.
             self.consistent_acceleration();
         }
-        let (kinetic, strain) = (self.kinetic_energy(), self.asm.strain_energy());
-        self.ledger.add_step(kinetic, strain, damping, external, actuation);
+        let energies = [self.kinetic_energy(), self.asm.strain_energy(), self.asm.contact_energy()];
+        self.ledger.add_step(energies, damping, external, actuation);
     }
 }
 
@@ -938,9 +946,10 @@ impl Residual for StepProblem<'_, '_> {
         };
         let em = nm.energy_momentum.as_ref();
         nm.viscous
-            .assemble_tangent(&nm.asm, v, rest_rate, (c_v / s, mass_term / s), em.is_none(), members);
-        if let Some(em) = em {
-            em.add_tangent(&nm.asm, k);
+            .assemble_tangent(&nm.asm, v, rest_rate, (c_v / s, mass_term / s), em.is_none(), &mut *members);
+        match em {
+            Some(em) => em.add_tangent(&nm.asm, k),
+            None => nm.asm.add_contact_tangent(1.0, members),
         }
         for (i, m) in nm.mass.iter().enumerate() {
             k.add(i, i, m * (c_a + alpha_r * c_v));
@@ -949,6 +958,17 @@ impl Residual for StepProblem<'_, '_> {
 
     fn symmetric(&self) -> bool {
         self.nm.viscous.symmetric() && self.nm.energy_momentum.is_none()
+    }
+
+    /// At the midpoint the positions move at half u's rate, and the end ones (which the
+    /// step commits, and whose gaps the energy–momentum form takes) at u's: both stay clear.
+    fn admissible(&mut self, u: &[f64], d: &[f64]) -> f64 {
+        let rate = self.nm.params.equation_at();
+        let at = self.nm.asm.admissible(d, rate);
+        if rate == 1.0 {
+            return at;
+        }
+        at.min(self.nm.asm.admissible_at(u, d))
     }
 }
 

@@ -204,6 +204,8 @@ pub struct Frame<'a> {
     pub modes: Option<FrameModes<'a>>,
     /// Strut clearance at this step; `None` when not tracked (`outputs.clearance: false`).
     pub clearance: Option<FrameClearance<'a>>,
+    /// The contacts within the activation distance at this step (empty without contact).
+    pub contacts: &'a [crate::contact::Active],
 }
 
 /// Strut clearance at one step (see [`crate::model::clearance`]).

@@ -51,6 +51,12 @@ pub trait TangentSink {
     /// Adds `value` to entry (`row`, `col`), both free-DOF indices.
     fn add(&mut self, row: usize, col: usize, value: f64);
 
+    /// Whether entry (`row`, `col`) can be added to: a sparse sink holds only its pattern's
+    /// (the members'), which a contact between two struts' nodes may fall outside.
+    fn holds(&self, _row: usize, _col: usize) -> bool {
+        true
+    }
+
     /// Adds a 6×6 element block on the DOFs `free` (`None`: not a free DOF). Element `e`
     /// must always come with the same DOFs, so a sink may cache where its entries go.
     fn add_element(&mut self, _e: usize, free: &[Option<usize>; 6], block: &[[f64; 6]; 6]) {
@@ -84,6 +90,10 @@ pub struct ScaledSink<'k> {
 impl TangentSink for ScaledSink<'_> {
     fn add(&mut self, row: usize, col: usize, value: f64) {
         self.sink.add(row, col, self.by * value);
+    }
+
+    fn holds(&self, row: usize, col: usize) -> bool {
+        self.sink.holds(row, col)
     }
 
     fn add_element(&mut self, e: usize, free: &[Option<usize>; 6], block: &[[f64; 6]; 6]) {
@@ -487,6 +497,11 @@ impl TangentSink for SparseSolver {
     fn add(&mut self, row: usize, col: usize, value: f64) {
         let k = self.slot(row, col);
         self.values[k] += value;
+    }
+
+    fn holds(&self, row: usize, col: usize) -> bool {
+        let (lo, hi) = (self.col_ptr[col], self.col_ptr[col + 1]);
+        self.row_idx[lo..hi].binary_search(&row).is_ok()
     }
 
     fn add_element(&mut self, e: usize, free: &[Option<usize>; 6], block: &[[f64; 6]; 6]) {

@@ -238,6 +238,13 @@ pub trait Residual {
     fn energy(&mut self, _u: &[f64]) -> Option<f64> {
         None
     }
+    /// The largest fraction of the increment `d` from the point of the last `residual`
+    /// call that the iterate may take: where bodies are in contact, the one that keeps them
+    /// apart ([`crate::contact::ContactSet::admissible`]). Newton takes no more of an
+    /// increment, and its line search starts there.
+    fn admissible(&mut self, _u: &[f64], _d: &[f64]) -> f64 {
+        1.0
+    }
 }
 
 /// How a converged Newton solve went.
@@ -528,7 +535,7 @@ fn step(
             ws.energies.push(e);
         }
         None => {
-            let damping = (max_step / progress.increment).min(1.0);
+            let damping = (max_step / progress.increment).min(1.0) * problem.admissible(u, &ws.d);
             for (ui, di) in u.iter_mut().zip(&ws.d) {
                 *ui += damping * di;
             }
@@ -638,7 +645,7 @@ fn line_search(problem: &mut impl Residual, u: &mut [f64], e0: f64, ws: &mut New
         slope = -slope;
     }
     let floor = ENERGY_ROUNDOFF * e0.abs();
-    let (mut alpha, mut factorizations) = (1.0, 0);
+    let (mut alpha, mut factorizations) = (problem.admissible(u, &ws.d), 0);
     for _ in 0..MAX_HALVINGS {
         let enough = e0 + ARMIJO * alpha * slope + floor;
         for ((t, ui), di) in ws.trial.iter_mut().zip(u.iter()).zip(&ws.d) {
@@ -670,8 +677,9 @@ fn corrected(problem: &mut impl Residual, ws: &mut NewtonWorkspace) -> Option<f6
     if !ws.factored || ws.solver.solve(&mut ws.correction).is_err() {
         return None;
     }
+    let admissible = problem.admissible(&ws.trial, &ws.correction);
     for (t, c) in ws.trial.iter_mut().zip(&ws.correction) {
-        *t += c;
+        *t += admissible * c;
     }
     problem.energy(&ws.trial)
 }

@@ -161,7 +161,8 @@ impl Analysis for Eigen {
     fn run(&self, structure: &Structure, state: State, _settings: &Settings, recorder: &mut dyn Recorder) -> Result<(State, EigenSummary)> {
         let model = &structure.model;
         let dofs = DofMap::new(model, &[]);
-        let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, state.positions.clone(), state.rest_of(structure));
+        let asm = structure.assembly(&dofs, state.positions.clone(), state.rest_of(structure));
+        super::require_apart(&asm, self.stage.name())?;
         let mass = structure.free_masses(&dofs);
         let m = modes(&asm, &mass, &self.solver)?;
         let (rayleigh, chosen, ratios) = match self.damping {

@@ -70,6 +70,18 @@ pub struct FoldSummary {
     /// The lowest eigenvalues at every step, when asked for (`folding.eigen`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub modes: Vec<PathModes>,
+    /// With contact: where the fold stopped short of its target, the struts in the way.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stopped_by_contact: Option<StoppedByContact>,
+}
+
+/// A fold that contact stopped.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct StoppedByContact {
+    /// The fraction of the prescribed displacement reached (the last converged step).
+    pub fraction: f64,
+    /// Why the next step could not be taken.
+    pub reason: String,
 }
 
 /// The lowest eigenvalues of K_T φ = ω² M φ at one folding step, prescribed directions
@@ -139,10 +151,28 @@ struct Fold<'a> {
     secant: Vec<f64>,
 }
 
-impl Fold<'_> {
-    /// Moves the prescribed directions from fraction `from` (the current one) to `to`
-    /// and solves; on failure restores the state. Returns the Newton iterations.
-    fn step(&mut self, from: f64, to: f64) -> Result<usize, SolveError> {
+impl<'a> Fold<'a> {
+    /// At the start (fraction 0) of `asm`, under the constant `load` on its free DOFs.
+    fn new(asm: Assembly<'a>, load: Vec<f64>, prescribed: &'a Prescribed, settings: &Settings) -> Self {
+        let (model, dofs) = (asm.model, asm.dofs);
+        Fold {
+            u: asm.free_coordinates(),
+            ws: NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_sparsity(model, dofs)),
+            problem: StaticEquilibrium { load, asm },
+            prescribed,
+            newton: settings.newton,
+            fraction: 0.0,
+            work: 0.0,
+            secant: Vec::new(),
+        }
+    }
+
+    /// Moves the prescribed directions from fraction `from` (the current one) to `to`, or
+    /// with contact as far towards it as keeps the bodies apart, and solves; on failure
+    /// restores the state. Returns the Newton iterations (`fraction`: where it got to).
+    fn step(&mut self, _from: f64, mut to: f64) -> Result<usize, SolveError> {
+        // Where the fold is (a sub-step before this one may have stopped short at contact).
+        let from = self.fraction;
         let (u_old, x_old) = (self.u.clone(), self.problem.asm.x.clone());
         let reaction = |asm: &Assembly, n: usize, a: usize| asm.p[3 * n + a];
         let before: Vec<f64> = self
@@ -150,6 +180,13 @@ impl Fold<'_> {
             .iter()
             .map(|&(n, a, _, _)| reaction(&self.problem.asm, n, a))
             .collect();
+        if let Some(contact) = &mut self.problem.asm.contact {
+            let mut dx = vec![Vector3::zeros(); x_old.len()];
+            for &(n, a, start, end) in self.prescribed {
+                dx[n][a] = (to - from) * (end - start);
+            }
+            to = from + contact.admissible(&x_old, &dx) * (to - from);
+        }
         for &(n, a, start, end) in self.prescribed {
             self.problem.asm.x[n][a] = start + to * (end - start);
         }
@@ -185,6 +222,53 @@ impl Fold<'_> {
             }
         }
     }
+}
+
+/// A fold step's admissible part below which contact has stopped the fold: the struts
+/// are about to touch (the step would close more than 90 % of a gap in a tenth of its
+/// travel). Pushing further on would press them together under displacement control,
+/// which is infinitely stiff: the barrier's force would grow without bound as the gap
+/// closed (a fold taken to 1e-6 of a step left 2.6e12 N on two struts and a start no
+/// transient could leave), so the fold stops before, and a force on the structure, not a
+/// displacement, is what presses bodies together (tests/contact.rs).
+const STALLED: f64 = 0.1;
+
+/// A fold step that failed with `error` (`None`: contact stalled it): with contact, where
+/// the fold stops (the prescribed nodes cannot be pushed through the struts; the state is
+/// the last converged one, which the frames hold); without, the stage's error (`named`).
+fn stopped_by_contact(
+    error: Option<SolveError>,
+    fold: &Fold,
+    step: usize,
+    named: impl FnOnce(SolveError) -> Error,
+) -> Result<StoppedByContact> {
+    if fold.problem.asm.contact.is_none() {
+        return Err(named(error.expect("without contact every step reaches its target")));
+    }
+    let reason = error.map_or_else(
+        || format!("step {step}: the struts are about to touch (a step's admissible part fell below {STALLED} of it)"),
+        |e| named(e).to_string(),
+    );
+    Ok(StoppedByContact {
+        fraction: fold.fraction,
+        reason,
+    })
+}
+
+/// Steps `fold` to fraction `target` (sub-stepped by `bisect` where Newton fails), over as
+/// many steps as contact cuts short; the Newton iterations and whether a step was cut.
+/// `Err(None)`: contact stalled the fold short of the target.
+fn advance(fold: &mut Fold, target: f64, max_cuts: u32) -> std::result::Result<(usize, bool), Option<SolveError>> {
+    let (mut iterations, mut cut) = (0, false);
+    while fold.fraction < target {
+        let from = fold.fraction;
+        let (i, c) = bisect(from, target, max_cuts, &mut |a, b| fold.step(a, b), &|i, j| i + j).map_err(Some)?;
+        (iterations, cut) = (iterations + i, cut || c);
+        if fold.fraction - from <= STALLED * (target - from) {
+            return Err(None);
+        }
+    }
+    Ok((iterations, cut))
 }
 
 /// The lowest `count` modes of the structure at the state of `asm` (its free DOFs), dense
@@ -273,21 +357,10 @@ impl Analysis for Folding {
         let h0 = height(&state.positions);
         let rest_lengths = state.rest_lengths;
         let rest = rest_lengths.as_deref().unwrap_or(&structure.elements.rest);
-        let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, state.positions, rest);
-        let mut fold = Fold {
-            u: asm.free_coordinates(),
-            ws: NewtonWorkspace::new(dofs.len(), &settings.newton, false, || tangent_sparsity(model, &dofs)),
-            problem: StaticEquilibrium {
-                load: structure.free_load(&dofs),
-                asm,
-            },
-            prescribed: &prescribed,
-            newton: settings.newton,
-            fraction: 0.0,
-            work: 0.0,
-            secant: Vec::new(),
-        };
-        let strain0 = fold.problem.asm.strain_energy();
+        let asm = structure.assembly(&dofs, state.positions, rest);
+        super::require_apart(&asm, self.stage.name())?;
+        let mut fold = Fold::new(asm, structure.free_load(&dofs), &prescribed, settings);
+        let (strain0, contact0) = (fold.problem.asm.strain_energy(), fold.problem.asm.contact_energy());
         let mut frames = FrameBuilder::new(structure, &dofs);
         let applied = structure.constant_load();
         let name = self.stage.name();
@@ -305,6 +378,7 @@ impl Analysis for Folding {
             let energy = Energy {
                 kinetic: 0.0,
                 strain: fold.problem.asm.strain_energy() - strain0,
+                contact: fold.problem.asm.contact_energy() - contact0,
                 damping: 0.0,
                 external: fold.work,
                 actuation: 0.0,
@@ -314,11 +388,18 @@ impl Analysis for Folding {
                 .map_err(record_error(name))
         };
         record(&fold, 0, recorder)?;
-        let (mut iterations_total, mut cuts_total) = (0, 0);
+        let (mut iterations_total, mut cuts_total, mut stopped_at) = (0, 0, None);
         for step in 1..=self.steps {
             let target = step as f64 / self.steps as f64;
-            let (iterations, cut) = bisect(fold.fraction, target, self.max_cuts, &mut |a, b| fold.step(a, b), &|i, j| i + j)
-                .map_err(solve_error(name, Some(step), None, structure, &dofs))?;
+            let (iterations, cut) = match advance(&mut fold, target, self.max_cuts) {
+                Ok(done) => done,
+                Err(e) => {
+                    let stopped = stopped_by_contact(e, &fold, step, solve_error(name, Some(step), None, structure, &dofs))?;
+                    stopped_at = Some(stopped);
+                    record(&fold, step, recorder)?;
+                    break;
+                }
+            };
             iterations_total += iterations;
             cuts_total += usize::from(cut);
             let energy = Energy {
@@ -335,6 +416,7 @@ impl Analysis for Folding {
         }
         recorder.end_stage(&self.stage).map_err(record_error(name))?;
         (summary.newton_iterations, summary.cut_steps) = (iterations_total, cuts_total);
+        summary.stopped_by_contact = stopped_at;
         summary.equilibrium = frames.check.into();
         summary.height_ratio = height(&fold.problem.asm.x) / h0;
         let end = State {

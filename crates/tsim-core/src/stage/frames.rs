@@ -175,7 +175,8 @@ impl FrameBuilder {
             reaction_sum[c.axis] += *r;
             balance[c.axis] -= inertia;
         }
-        balance += reaction_sum;
+        // The ground's contact force is a reaction too, at no constrained direction.
+        balance += reaction_sum + asm.contact.as_ref().map_or(Vector3::zeros(), |c| c.ground_force());
         let error = balance.norm();
         let max_force = self.axial.total.iter().fold(0.0_f64, |m, n| m.max(n.abs()));
         let scale = applied_sum.max(reaction_sum.norm()).max(max_force);
@@ -208,6 +209,7 @@ impl FrameBuilder {
                 nearest,
                 events: t.events(),
             }),
+            contacts: asm.contact.as_ref().map_or(&[][..], |c| &c.active[..]),
         });
         if let Some(tracker) = &mut self.clearance {
             tracker.clear_events();
@@ -240,6 +242,7 @@ pub fn non_finite(asm: &Assembly, velocities: Option<&[f64]>, energy: &Energy) -
     let Energy {
         kinetic,
         strain,
+        contact,
         damping,
         external,
         actuation,
@@ -247,7 +250,7 @@ pub fn non_finite(asm: &Assembly, velocities: Option<&[f64]>, energy: &Energy) -
     let sum = asm.x.iter().map(|x| x.sum()).sum::<f64>()
         + velocities.map_or(0.0, |v| v.iter().sum())
         + asm.states.iter().map(|s| s.force).sum::<f64>()
-        + (kinetic + strain + damping + external + actuation);
+        + (kinetic + strain + contact + damping + external + actuation);
     if sum.is_finite() {
         return None;
     }

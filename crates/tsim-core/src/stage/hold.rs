@@ -59,6 +59,7 @@ pub struct HoldSummary {
 /// The energy ledger of the steps: the work of the loads and of the rest lengths.
 struct Ledger {
     strain0: f64,
+    contact0: f64,
     external: f64,
     actuation: f64,
     /// ∂U/∂l0 of every member at the last converged step [N].
@@ -73,6 +74,7 @@ impl Ledger {
         asm.energy_rest_derivatives(&mut force);
         Ledger {
             strain0: asm.strain_energy(),
+            contact0: asm.contact_energy(),
             external: 0.0,
             actuation: 0.0,
             force_next: force.clone(),
@@ -99,6 +101,7 @@ impl Ledger {
         Energy {
             kinetic: 0.0,
             strain: asm.strain_energy() - self.strain0,
+            contact: asm.contact_energy() - self.contact0,
             damping: 0.0,
             external: self.external,
             actuation: self.actuation,
@@ -150,7 +153,8 @@ impl Analysis for Hold {
             vec![Vector3::zeros(); model.node_count()]
         };
         let schedule = RestSchedule::new(state.rest_of(structure).to_vec(), self.actuators.clone());
-        let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, state.positions.clone(), state.rest_of(structure));
+        let asm = structure.assembly(&dofs, state.positions.clone(), state.rest_of(structure));
+        super::require_apart(&asm, name)?;
         let mut frames = FrameBuilder::new(structure, &dofs);
         frames.actuated = true;
         frames.begin(recorder, &self.stage).map_err(record_error(name))?;

@@ -108,6 +108,18 @@ fn name_free_motion<'a>(model: &'a crate::model::Model, prescribed: &'a [[bool; 
     }
 }
 
+/// Refuses to start `stage` from a state where bodies in contact overlap: the barrier is
+/// infinite there, and no admissible step leads out.
+fn require_apart(asm: &crate::tsm::Assembly, stage: &str) -> Result<()> {
+    match asm.contact.as_ref().and_then(|c| c.overlap_text(asm.model)) {
+        Some(reason) => Err(Error::Stage {
+            stage: stage.into(),
+            reason,
+        }),
+        None => Ok(()),
+    }
+}
+
 /// A recorder failure as a stage error, keeping its source.
 fn record_error(stage: &str) -> impl Fn(RecordError) -> Error + '_ {
     move |source| Error::Record {

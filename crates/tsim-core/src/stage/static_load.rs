@@ -134,6 +134,16 @@ impl Residual for PatternControl<'_> {
         let coordinates = d.iter().enumerate().filter(|&(i, _)| i != self.dof);
         Some(coordinates.fold(0.0, |m, (_, v)| m.max(v.abs())))
     }
+
+    /// The coordinates' part of `d` (λ's slot is the controlled coordinate, which stays).
+    fn admissible(&mut self, _u: &[f64], d: &[f64]) -> f64 {
+        if self.asm.contact.is_none() {
+            return 1.0;
+        }
+        let mut moved = d.to_vec();
+        moved[self.dof] = 0.0;
+        self.asm.admissible(&moved, 1.0)
+    }
 }
 
 /// A sink that drops one column (the controlled coordinate's, replaced by λ's).
@@ -147,6 +157,10 @@ impl TangentSink for WithoutColumn<'_> {
         if col != self.col {
             self.sink.add(row, col, value);
         }
+    }
+
+    fn holds(&self, row: usize, col: usize) -> bool {
+        self.sink.holds(row, col)
     }
 }
 
@@ -162,6 +176,7 @@ struct Steps<'a> {
     work: f64,
     start: Vec<Vector3<f64>>,
     strain0: f64,
+    contact0: f64,
     summary: StaticSummary,
     frames: FrameBuilder,
     recorded: usize,
@@ -173,6 +188,7 @@ impl Steps<'_> {
         let energy = Energy {
             kinetic: 0.0,
             strain: asm.strain_energy() - self.strain0,
+            contact: asm.contact_energy() - self.contact0,
             damping: 0.0,
             external: self.work,
             actuation: 0.0,
@@ -418,7 +434,8 @@ impl Analysis for StaticLoad {
         let dofs = DofMap::new(model, &[]);
         let n = model.node_count();
         let rest = state.rest_of(structure);
-        let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, state.positions.clone(), rest);
+        let asm = structure.assembly(&dofs, state.positions.clone(), rest);
+        super::require_apart(&asm, self.stage.name())?;
         let mut steps = Steps {
             stage: &self.stage,
             structure,
@@ -432,6 +449,7 @@ impl Analysis for StaticLoad {
             work: 0.0,
             start: state.positions.clone(),
             strain0: asm.strain_energy(),
+            contact0: asm.contact_energy(),
             summary: StaticSummary {
                 steps: self.steps,
                 load_factor: 1.0,
@@ -454,7 +472,7 @@ impl Analysis for StaticLoad {
                 } else {
                     asm.x.clone()
                 };
-                let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, x, rest);
+                let asm = structure.assembly(&dofs, x, rest);
                 let (x, lambda) = steps.displacement_control(asm, &self.pattern(n), control, self.steps, self.max_cuts, recorder)?;
                 steps.summary.load_factor = lambda;
                 x
@@ -462,7 +480,7 @@ impl Analysis for StaticLoad {
         };
         recorder.end_stage(&self.stage).map_err(record_error(self.stage.name()))?;
         steps.summary.equilibrium = steps.frames.check.into();
-        let asm = Assembly::with_rest_lengths(model, &structure.elements, &dofs, x, rest);
+        let asm = structure.assembly(&dofs, x, rest);
         steps.summary.lowest_stiffness = super::eigen::lowest_stiffness(&asm)?.0;
         let end = State {
             rest_lengths: state.rest_lengths.clone(),

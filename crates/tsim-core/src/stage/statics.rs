@@ -25,10 +25,15 @@ impl Residual for StaticEquilibrium<'_> {
         self.asm.add_tangent(1.0, k);
     }
 
-    /// Strain energy less the work of the load: its gradient is −r.
+    /// Strain energy (and the contacts' barrier energy) less the work of the load: its
+    /// gradient is −r.
     fn energy(&mut self, u: &[f64]) -> Option<f64> {
         self.asm.set_free(u);
         let work: f64 = self.load.iter().zip(u).map(|(f, ui)| f * ui).sum();
-        Some(self.asm.strain_energy() - work)
+        Some(self.asm.strain_energy() + self.asm.contact_energy() - work)
+    }
+
+    fn admissible(&mut self, _u: &[f64], d: &[f64]) -> f64 {
+        self.asm.admissible(d, 1.0)
     }
 }

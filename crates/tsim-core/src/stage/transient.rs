@@ -16,7 +16,7 @@ use crate::model::{shape_error, MemberKind, Model};
 use crate::record::{Recorder, Stage, StageLayout};
 use crate::solve::NewtonReport;
 use crate::structure::{State, Structure};
-use crate::tsm::{Assembly, DofMap};
+use crate::tsm::DofMap;
 use nalgebra::Vector3;
 
 /// A transient stage.
@@ -330,6 +330,7 @@ impl Transient {
         loads.at(0.0, false, &dofs, &mut f0);
         let rest_lengths = state.rest_lengths.clone();
         let mut nm = self.start(structure, &dofs, state, (masses, f0), settings);
+        super::require_apart(&nm.asm, name)?;
         let mut run = Stepping::new(self, structure, &dofs, constant, reference);
         run.begin(&nm, recorder)?;
         match self.params.auto {
@@ -461,7 +462,7 @@ impl Transient {
         let v0 = state.free_velocities(dofs);
         let rest = state.rest_lengths.as_deref().unwrap_or(&structure.elements.rest);
         let schedule = (!self.actuators.is_empty()).then(|| RestSchedule::new(rest.to_vec(), self.actuators.clone()));
-        let asm = Assembly::with_rest_lengths(&structure.model, &structure.elements, dofs, state.positions, rest);
+        let asm = structure.assembly(dofs, state.positions, rest);
         let mut nm = Newmark::actuated(asm, masses, v0, f0, &self.integrator(settings), schedule);
         if self.initial.zero_acceleration {
             nm.start_with_zero_acceleration();

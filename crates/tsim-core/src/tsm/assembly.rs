@@ -1,7 +1,9 @@
 use super::{assemble_tangent, DofMap, Elements, MemberState};
+use crate::contact::{Contact, ContactSet};
 use crate::model::Model;
 use crate::solve::{Scale, TangentSink};
 use nalgebra::Vector3;
+use std::sync::Arc;
 
 /// A structure evaluated at one configuration: positions of every node (supported and
 /// prescribed ones hold their imposed values), member states and internal forces.
@@ -25,8 +27,12 @@ pub struct Assembly<'a> {
     pub p: Vec<f64>,
     /// Per node, its largest |coordinate|: what a length's round-off grows with ([`Self::scale`]).
     reach: Vec<f64>,
-    /// Over the members: the largest |N|, and the largest |dN/dl|·(reach) + |N| ([`Self::scale`]).
+    /// Over the members and contacts: the largest |N|, and the largest |dN/dl|·(reach) + |N|
+    /// ([`Self::scale`]).
     largest: (f64, f64),
+    /// The contacts, where bodies may touch: their forces are in `p`, their tangent in
+    /// [`Self::add_tangent`], their energy in [`Self::contact_energy`].
+    pub contact: Option<ContactSet>,
 }
 
 impl<'a> Assembly<'a> {
@@ -48,9 +54,17 @@ impl<'a> Assembly<'a> {
             p: vec![0.0; 3 * model.node_count()],
             reach: vec![0.0; model.node_count()],
             largest: (0.0, 0.0),
+            contact: None,
         };
         a.update();
         a
+    }
+
+    /// With `contact` between its bodies (`None`: none), evaluated at the current `x`.
+    pub fn with_contact(mut self, contact: Option<&Arc<Contact>>) -> Self {
+        self.contact = contact.map(|c| ContactSet::new(Arc::clone(c)));
+        self.update();
+        self
     }
 
     /// Sets the members' rest lengths (not re-evaluated: the next [`Self::set_free`] or
@@ -91,6 +105,11 @@ impl<'a> Assembly<'a> {
             force = force.max(s.force.abs());
             stiff = stiff.max(s.stiffness.abs() * reach + s.force.abs());
         }
+        if let Some(c) = &mut self.contact {
+            c.evaluate(&self.x, &mut self.p);
+            let (f, s) = c.scale(&self.x);
+            (force, stiff) = (force.max(f), stiff.max(s));
+        }
         self.largest = (force, stiff);
     }
 
@@ -101,6 +120,12 @@ impl<'a> Assembly<'a> {
             self.x[n][a] = v;
         }
         self.update();
+    }
+
+    /// The contacts' barrier energy at the current `x` [J] (0 without contact; ∞ where
+    /// bodies overlap).
+    pub fn contact_energy(&self) -> f64 {
+        self.contact.as_ref().map_or(0.0, |c| c.energy)
     }
 
     /// Strain energy of all members at the current `x` [J].
@@ -123,9 +148,43 @@ impl<'a> Assembly<'a> {
             .collect()
     }
 
-    /// Adds `factor`·K_T on the free DOFs.
+    /// Adds `factor`·K_T on the free DOFs, the contacts' tangent included.
     pub fn add_tangent(&self, factor: f64, k: &mut (impl TangentSink + ?Sized)) {
         assemble_tangent(self.model, &self.states, self.dofs, factor, k);
+        self.add_contact_tangent(factor, k);
+    }
+
+    /// Adds `factor` × the contacts' tangent on the free DOFs (none without contact): for
+    /// a stage that assembles the members' K_T its own way (time steps, with damping).
+    pub fn add_contact_tangent(&self, factor: f64, k: &mut (impl TangentSink + ?Sized)) {
+        if let Some(c) = &self.contact {
+            c.add_tangent(&self.x, self.dofs, factor, k);
+        }
+    }
+
+    /// The largest fraction of the increment `d` of the free coordinates, moved at `rate`
+    /// times it, that keeps every contact gap open ([`ContactSet::admissible`]); 1 without
+    /// contact.
+    pub fn admissible(&mut self, d: &[f64], rate: f64) -> f64 {
+        match &mut self.contact {
+            Some(c) => c.admissible_free(&self.x, self.dofs, d, rate),
+            None => 1.0,
+        }
+    }
+
+    /// [`Self::admissible`] from the positions whose free coordinates are `u` (the others
+    /// as in `x`), at u's rate: a midpoint step's end.
+    pub fn admissible_at(&mut self, u: &[f64], d: &[f64]) -> f64 {
+        let Some(c) = &mut self.contact else { return 1.0 };
+        let mut at = std::mem::take(&mut c.at);
+        at.clone_from(&self.x);
+        for (i, &ui) in u.iter().enumerate() {
+            let (n, a) = self.dofs.owner(i);
+            at[n][a] = ui;
+        }
+        let tau = c.admissible_free(&at, self.dofs, d, 1.0);
+        c.at = at;
+        tau
     }
 
     /// Internal force on free DOF `i`.

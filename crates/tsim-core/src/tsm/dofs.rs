@@ -61,3 +61,13 @@ impl DofMap {
         format!("node `{}` direction {}", model.nodes[n].id, AXES[a])
     }
 }
+
+impl crate::contact::Dofs for DofMap {
+    fn free(&self, n: usize, a: usize) -> Option<usize> {
+        DofMap::free(self, n, a)
+    }
+
+    fn owner(&self, i: usize) -> (usize, usize) {
+        DofMap::owner(self, i)
+    }
+}

@@ -15,6 +15,7 @@
 //! strut's EA turns that into force (`dynamics::Scheme`).
 
 use super::{add_member_block, Assembly, TangentSink};
+use crate::contact::StepContact;
 use crate::law::ForceLaw;
 use nalgebra::{Matrix3, Vector3};
 
@@ -68,6 +69,8 @@ pub struct EnergyMomentum {
     gradients: Vec<DiscreteGradient>,
     /// Internal (resisting) force over all 3n directions [N], as [`Assembly::p`].
     pub p: Vec<f64>,
+    /// The contacts' forces in the same form, where bodies touch.
+    contact: Option<StepContact>,
 }
 
 impl EnergyMomentum {
@@ -78,6 +81,7 @@ impl EnergyMomentum {
             start: vec![Vector3::zeros(); members],
             gradients: vec![DiscreteGradient::default(); members],
             p: vec![0.0; 3 * asm.model.node_count()],
+            contact: asm.contact.as_ref().map(|c| StepContact::new(c.contact.clone())),
         }
     }
 
@@ -85,6 +89,9 @@ impl EnergyMomentum {
     pub fn start_step(&mut self, asm: &Assembly) {
         for (d, m) in self.start.iter_mut().zip(&asm.model.members) {
             *d = asm.x[m.nodes[1]] - asm.x[m.nodes[0]];
+        }
+        if let Some(c) = &mut self.contact {
+            c.start_step(&asm.x);
         }
     }
 
@@ -104,6 +111,9 @@ impl EnergyMomentum {
                 self.p[3 * b + k] += f[k];
             }
         }
+        if let Some(c) = &mut self.contact {
+            c.at_midpoint(&asm.x, &mut self.p);
+        }
     }
 
     /// Internal force on free DOF `i`.
@@ -122,6 +132,9 @@ impl EnergyMomentum {
             let mid = asm.x[b] - asm.x[a];
             let k = Matrix3::identity() * (0.5 * g.s) + mid * (2.0 * mid - da).transpose() * g.ds_dqb;
             add_member_block(asm.dofs, e, m.nodes, &k, sink);
+        }
+        if let Some(c) = &self.contact {
+            c.add_tangent(asm.dofs, sink);
         }
     }
 }

@@ -140,6 +140,21 @@ impl Struts {
         Segment::new(x[p], x[q])
     }
 
+    /// Radius of strut `k` [m].
+    pub fn radius(&self, k: u32) -> f64 {
+        self.radius[k as usize]
+    }
+
+    /// End nodes of strut `k`.
+    pub fn ends(&self, k: u32) -> [usize; 2] {
+        self.ends[k as usize]
+    }
+
+    /// The largest radius [m].
+    pub fn max_radius(&self) -> f64 {
+        self.r_max
+    }
+
     /// Member index of strut `k`.
     pub fn member(&self, k: u32) -> usize {
         self.members[k as usize]

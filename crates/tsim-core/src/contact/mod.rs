@@ -1,0 +1,443 @@
+//! Contact: struts that cannot pass through each other or the ground.
+//!
+//! A strut is a capsule, its axis plus a radius (the section's, or one given for tubes and
+//! joints); the ground a half-space, a plane and its outward normal, against which every
+//! node not supported in all directions is a ball of its struts' largest radius (a capsule's point
+//! nearest a plane is always an end, so this is the capsule against the plane). A gap g
+//! is the distance between surfaces.
+//!
+//! The formulation is Incremental Potential Contact's (Li et al. 2020): every gap below
+//! the activation distance ĝ adds the barrier b(g) ([`barrier`]) to the structure's
+//! potential, so contact is one more element of the common scheme, with a force
+//! (∂b/∂x = b′ ∇g, added to the internal force) and a tangent (b″ ∇g ∇gᵀ + b′ ∇²g, added
+//! to K_T) in every stage, static or dynamic, and an energy in the ledger. Bodies stay
+//! apart by construction, not by a stiffness guess: the barrier is infinite at g = 0, and
+//! no Newton iterate may get there, each increment being cut to the fraction that keeps
+//! every gap above [`KEEP`] of its value ([`ContactSet::admissible`], a conservative
+//! advancement of the segments along the increment: a continuous collision check, so a
+//! strut cannot jump through another within one increment either).
+
+pub mod barrier;
+pub mod discrete;
+pub mod distance;
+
+pub use barrier::{Barrier, BarrierValue};
+pub use discrete::StepContact;
+pub use distance::{Mat12, SegmentDistance, Vec12};
+
+use crate::model::clearance::{PairClearance, Segment, Struts, Workspace};
+use crate::model::Model;
+use crate::solve::TangentSink;
+use nalgebra::Vector3;
+use std::sync::Arc;
+
+/// The numbering of the free DOFs contact forces and tangents go to (the tsm's `DofMap`).
+pub trait Dofs {
+    /// The free DOF of node `n`'s axis `a`, if free.
+    fn free(&self, n: usize, a: usize) -> Option<usize>;
+    /// The node and axis of free DOF `i`.
+    fn owner(&self, i: usize) -> (usize, usize);
+}
+
+/// No increment closes more than 1 − KEEP of a gap: the iterate stays clear of the
+/// barrier's singularity, and Newton (whose increments shrink quadratically) is not slowed
+/// near a solution. IPC's continuous collision check keeps a similar fraction.
+pub const KEEP: f64 = 0.1;
+
+/// The ground: a half-space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ground {
+    /// A point of its surface [m].
+    pub point: Vector3<f64>,
+    /// Unit outward normal (into the space the structure is in).
+    pub normal: Vector3<f64>,
+}
+
+/// What can touch: the struts as capsules and the ground, with the barrier between them.
+#[derive(Clone, Debug)]
+pub struct Contact {
+    /// The struts with their contact radii (`None`: struts pass through each other).
+    pub struts: Option<Arc<Struts>>,
+    /// The ground (`None`: none).
+    pub ground: Option<Ground>,
+    /// Each node's radius against the ground [m] (its struts' largest; 0 for a node of
+    /// cables only), and `None` for a node supported in every direction, which is attached
+    /// to the ground (one held in some directions only still bears on it).
+    pub node_radius: Vec<Option<f64>>,
+    /// The barrier.
+    pub barrier: Barrier,
+}
+
+/// The two things in contact.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Touch {
+    /// Two struts, by member index (the lower first).
+    Struts([usize; 2]),
+    /// A node and the ground.
+    Ground(usize),
+}
+
+/// One contact within the activation distance at the current positions.
+#[derive(Clone, Copy, Debug)]
+pub struct Active {
+    /// What touches.
+    pub touch: Touch,
+    /// The gap between the surfaces [m] (> 0).
+    pub gap: f64,
+    /// The force pressing them apart, −b′(g) [N] (≥ 0).
+    pub force: f64,
+    /// Where: the midpoint of the axes' closest points, or the node's foot on the ground [m].
+    pub point: Vector3<f64>,
+    /// Unit normal along which the force acts on the second body (the first struts'
+    /// member gets −force · normal; a node on the ground gets +force · normal).
+    pub normal: Vector3<f64>,
+    /// The nodes whose coordinates the gap depends on: a0, a1, b0, b1 of a strut pair
+    /// (the first member's ends first), or the node four times for the ground.
+    nodes: [usize; 4],
+    barrier: BarrierValue,
+    /// ∂g/∂x of the nodes (ground: the normal, then zeros).
+    gradient: Vec12,
+}
+
+/// The contacts of a structure at its current positions, with the buffers the searches
+/// reuse: what an [`Assembly`](crate::tsm::Assembly) carries to add contact to its forces,
+/// tangent and energy.
+#[derive(Clone, Debug)]
+pub struct ContactSet {
+    /// The geometry and barrier.
+    pub contact: Arc<Contact>,
+    /// Contacts within the activation distance at the last evaluation.
+    pub active: Vec<Active>,
+    /// Σ b over them [J] (∞ where some surfaces overlap).
+    pub energy: f64,
+    /// The most overlapping pair or node at the last evaluation (gap ≤ 0), which no
+    /// admissible step reaches: a stage that starts from such a state reports it.
+    pub overlap: Option<(Touch, f64)>,
+    /// Verlet list: every non-adjacent strut pair within `reach` of clearance at `listed_at`.
+    listed_at: Vec<Vector3<f64>>,
+    listed: Vec<(u32, u32)>,
+    reach: f64,
+    ws: Workspace,
+    near: Vec<PairClearance>,
+    /// Node displacements of an increment ([`Self::admissible`]).
+    dx: Vec<Vector3<f64>>,
+    /// Positions an increment starts from, where not the evaluated ones
+    /// ([`crate::tsm::Assembly::admissible_at`]).
+    pub at: Vec<Vector3<f64>>,
+}
+
+impl Contact {
+    /// Contact of `model`'s struts (capsules of radius `radius[m]` for member m; `None`:
+    /// no strut contact) and of its unsupported nodes with `ground`, through `barrier`.
+    pub fn new(model: &Model, struts: Option<Arc<Struts>>, radius: &[f64], ground: Option<Ground>, barrier: Barrier) -> Self {
+        let mut node_radius: Vec<Option<f64>> = model.nodes.iter().map(|n| (!n.support.iter().all(|&s| s)).then_some(0.0)).collect();
+        for (m, member) in model.members.iter().enumerate() {
+            if member.kind == crate::model::MemberKind::Strut {
+                for &n in &member.nodes {
+                    if let Some(r) = &mut node_radius[n] {
+                        *r = r.max(radius[m]);
+                    }
+                }
+            }
+        }
+        Contact {
+            struts,
+            ground,
+            node_radius,
+            barrier,
+        }
+    }
+
+    /// The gap of node `n` (radius `r`) above the ground at `x`.
+    fn ground_gap(ground: &Ground, r: f64, x: Vector3<f64>) -> f64 {
+        ground.normal.dot(&(x - ground.point)) - r
+    }
+}
+
+impl ContactSet {
+    /// The contacts of `contact`, not yet evaluated.
+    pub fn new(contact: Arc<Contact>) -> Self {
+        ContactSet {
+            contact,
+            active: Vec::new(),
+            energy: 0.0,
+            overlap: None,
+            listed_at: Vec::new(),
+            listed: Vec::new(),
+            reach: 0.0,
+            ws: Workspace::default(),
+            near: Vec::new(),
+            dx: Vec::new(),
+            at: Vec::new(),
+        }
+    }
+
+    /// Evaluates every contact at positions `x` and adds their forces b′ ∇g to the
+    /// internal force `p` (3n, node-major).
+    pub fn evaluate(&mut self, x: &[Vector3<f64>], p: &mut [f64]) {
+        self.active.clear();
+        self.energy = 0.0;
+        self.overlap = None;
+        let contact = Arc::clone(&self.contact);
+        if let Some(struts) = &contact.struts {
+            self.list(struts, x);
+            for k in 0..self.listed.len() {
+                let (i, j) = self.listed[k];
+                self.strut_pair(struts, (i, j), x);
+            }
+        }
+        if let Some(ground) = &contact.ground {
+            for (n, r) in contact.node_radius.iter().enumerate() {
+                let Some(r) = *r else { continue };
+                let gap = Contact::ground_gap(ground, r, x[n]);
+                let mut gradient = Vec12::zeros();
+                gradient.fixed_rows_mut::<3>(0).copy_from(&ground.normal);
+                let point = x[n] - ground.normal * (gap + r);
+                self.add(Touch::Ground(n), gap, [n; 4], gradient, point, ground.normal);
+            }
+        }
+        for c in &self.active {
+            let count = if matches!(c.touch, Touch::Ground(_)) { 1 } else { 4 };
+            for (k, &n) in c.nodes[..count].iter().enumerate() {
+                for a in 0..3 {
+                    p[3 * n + a] += c.barrier.slope * c.gradient[3 * k + a];
+                }
+            }
+        }
+    }
+
+    /// Struts `(i, j)` at `x`: an active contact if within the activation distance.
+    fn strut_pair(&mut self, struts: &Struts, (i, j): (u32, u32), x: &[Vector3<f64>]) {
+        let (a, b) = (struts.segment(i, x), struts.segment(j, x));
+        let radii = struts.radius(i) + struts.radius(j);
+        // Within the activation distance only if the axes are within it plus the radii:
+        // the cheap test first.
+        let sd = SegmentDistance::new(&a, &b);
+        let gap = sd.distance - radii;
+        let ([ma, mb], [pa, qa], [pb, qb]) = ([struts.member(i), struts.member(j)], struts.ends(i), struts.ends(j));
+        let (touch, nodes, gradient, normal) = if ma < mb {
+            (Touch::Struts([ma, mb]), [pa, qa, pb, qb], sd.gradient, sd.on_b - sd.on_a)
+        } else {
+            // The lower member first: swap the halves of the gradient.
+            let mut g = Vec12::zeros();
+            g.fixed_rows_mut::<6>(0).copy_from(&sd.gradient.fixed_rows::<6>(6));
+            g.fixed_rows_mut::<6>(6).copy_from(&sd.gradient.fixed_rows::<6>(0));
+            (Touch::Struts([mb, ma]), [pb, qb, pa, qa], g, sd.on_a - sd.on_b)
+        };
+        let normal = normal / sd.distance;
+        self.add(touch, gap, nodes, gradient, 0.5 * (sd.on_a + sd.on_b), normal);
+    }
+
+    /// Adds a contact at gap `gap` if active; a gap ≤ 0 is an overlap: infinite energy,
+    /// and a NaN force on its nodes, so that no solve converges there (admissible iterates
+    /// never get there; a state that starts so is refused by its stage).
+    fn add(&mut self, touch: Touch, gap: f64, nodes: [usize; 4], gradient: Vec12, point: Vector3<f64>, normal: Vector3<f64>) {
+        if !(gap > 0.0) {
+            self.energy = f64::INFINITY;
+            let barrier = BarrierValue {
+                energy: f64::INFINITY,
+                slope: f64::NAN,
+                curvature: 0.0,
+            };
+            self.active.push(Active {
+                touch,
+                gap,
+                force: f64::NAN,
+                point,
+                normal,
+                nodes,
+                barrier,
+                gradient,
+            });
+            if self.overlap.is_none_or(|(_, g)| gap < g) {
+                self.overlap = Some((touch, gap));
+            }
+            return;
+        }
+        if let Some(barrier) = self.contact.barrier.at(gap) {
+            self.energy += barrier.energy;
+            self.active.push(Active {
+                touch,
+                gap,
+                force: -barrier.slope,
+                point,
+                normal,
+                nodes,
+                barrier,
+                gradient,
+            });
+        }
+    }
+
+    /// Keeps `listed` holding every pair within the activation distance at `x`: rebuilt
+    /// (with a margin, `reach`) once some strut end moved far enough since the last build
+    /// that an unlisted pair could have come within it.
+    fn list(&mut self, struts: &Struts, x: &[Vector3<f64>]) {
+        let activation = self.contact.barrier.distance;
+        let moved = if self.listed_at.len() == x.len() {
+            x.iter().zip(&self.listed_at).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max)
+        } else {
+            f64::INFINITY
+        };
+        // Two ends of a pair each moving `moved` change their gap by at most 2 `moved`.
+        if activation + 2.0 * moved <= self.reach {
+            return;
+        }
+        self.reach = 2.0 * activation + 2.0 * struts.max_radius();
+        struts.near(x, self.reach, &mut self.ws, &mut self.near);
+        self.listed.clear();
+        self.listed.extend(self.near.iter().map(|p| p.struts));
+        self.listed.sort_unstable();
+        self.listed_at.clear();
+        self.listed_at.extend_from_slice(x);
+    }
+
+    /// Adds `factor` × the contacts' tangent, b″ ∇g ∇gᵀ + b′ ∇²g at the last evaluation
+    /// (positions `x`), on the free DOFs of `dofs`. Entries the sink does not hold (a
+    /// sparse pattern made from the members, which couples no two struts' nodes) are left
+    /// out: Newton then iterates on an approximate tangent, and converges to the same
+    /// point (the residual is exact).
+    pub fn add_tangent(&self, x: &[Vector3<f64>], dofs: &dyn Dofs, factor: f64, k: &mut (impl TangentSink + ?Sized)) {
+        for c in &self.active {
+            let (count, hessian) = match c.touch {
+                Touch::Struts(_) => {
+                    let seg = |a: usize, b: usize| Segment::new(x[c.nodes[a]], x[c.nodes[b]]);
+                    let (a, b) = (seg(0, 1), seg(2, 3));
+                    (4, SegmentDistance::new(&a, &b).hessian(&a, &b) * c.barrier.slope)
+                }
+                Touch::Ground(_) => (1, Mat12::zeros()),
+            };
+            let h = (c.gradient * c.gradient.transpose() * c.barrier.curvature + hessian) * factor;
+            add_block(dofs, &c.nodes[..count], &h, k);
+        }
+    }
+
+    /// The largest fraction τ ∈ (0, 1] of the increment `dx` (node displacements) from
+    /// positions `x` along which every gap stays above [`KEEP`] of its value at `x`.
+    pub fn admissible(&mut self, x: &[Vector3<f64>], dx: &[Vector3<f64>]) -> f64 {
+        let contact = Arc::clone(&self.contact);
+        let mut tau: f64 = 1.0;
+        if let Some(ground) = &contact.ground {
+            for (n, r) in contact.node_radius.iter().enumerate() {
+                let Some(r) = *r else { continue };
+                let approach = -ground.normal.dot(&dx[n]);
+                let gap = Contact::ground_gap(ground, r, x[n]);
+                if approach > 0.0 && gap > 0.0 {
+                    tau = tau.min((1.0 - KEEP) * gap / approach);
+                }
+            }
+        }
+        if let Some(struts) = &contact.struts {
+            let largest = dx.iter().map(|d| d.norm()).fold(0.0, f64::max);
+            // Only a pair within 2 max|dx| / (1 − KEEP) can lose 1 − KEEP of its gap.
+            struts.near(x, 2.0 * largest / (1.0 - KEEP), &mut self.ws, &mut self.near);
+            for p in &self.near {
+                tau = tau.min(advance(struts, p.struts, x, dx));
+            }
+        }
+        tau
+    }
+
+    /// [`Self::admissible`] for an increment of the free coordinates `d` scaled by `rate`.
+    pub fn admissible_free(&mut self, x: &[Vector3<f64>], dofs: &dyn Dofs, d: &[f64], rate: f64) -> f64 {
+        let mut dx = std::mem::take(&mut self.dx);
+        dx.clear();
+        dx.resize(x.len(), Vector3::zeros());
+        for (i, di) in d.iter().enumerate() {
+            let (n, a) = dofs.owner(i);
+            dx[n][a] = rate * di;
+        }
+        let tau = self.admissible(x, &dx);
+        self.dx = dx;
+        tau
+    }
+
+    /// What overlaps at the last evaluation, in words with the remedy (`None`: nothing).
+    pub fn overlap_text(&self, model: &Model) -> Option<String> {
+        let (touch, gap) = self.overlap?;
+        Some(match touch {
+            Touch::Struts([a, b]) => format!(
+                "struts `{}` and `{}` overlap by {:.3e} m at the stage's start: contact cannot begin from overlapping bodies; \
+                 give them smaller capsules (`contact.radius`), or start from a shape where they are apart",
+                model.members[a].id, model.members[b].id, -gap
+            ),
+            Touch::Ground(n) => format!(
+                "node `{}` is {:.3e} m inside the ground at the stage's start (its struts' radius included): \
+                 move `contact.ground.point` below the structure, or support the node",
+                model.nodes[n].id, -gap
+            ),
+        })
+    }
+
+    /// The largest force of the active contacts [N] and b″ times the largest coordinate
+    /// of their nodes plus that force: their share of the residual's scale and round-off.
+    pub fn scale(&self, x: &[Vector3<f64>]) -> (f64, f64) {
+        self.active.iter().fold((0.0_f64, 0.0_f64), |(f, s), c| {
+            let reach = c.nodes.iter().map(|&n| x[n].amax()).fold(0.0, f64::max);
+            (f.max(c.force), s.max(c.barrier.curvature * reach + c.force))
+        })
+    }
+
+    /// The ground's force on the structure, summed [N].
+    pub fn ground_force(&self) -> Vector3<f64> {
+        self.active
+            .iter()
+            .filter(|c| matches!(c.touch, Touch::Ground(_)))
+            .map(|c| c.normal * c.force)
+            .sum()
+    }
+}
+
+/// Adds the block `h` over the coordinates of `nodes` (3 per node, in order) on their free
+/// DOFs, where the sink holds the entry (see [`ContactSet::add_tangent`]).
+fn add_block(dofs: &dyn Dofs, nodes: &[usize], h: &Mat12, k: &mut (impl TangentSink + ?Sized)) {
+    let free: [Option<usize>; 12] = std::array::from_fn(|r| nodes.get(r / 3).and_then(|&n| dofs.free(n, r % 3)));
+    for (r, row) in free.iter().enumerate() {
+        let Some(row) = *row else { continue };
+        for (c, col) in free.iter().enumerate() {
+            if let Some(col) = *col {
+                if k.holds(row, col) {
+                    k.add(row, col, h[(r, c)]);
+                }
+            }
+        }
+    }
+}
+
+/// Conservative advancement (Mirtich 1996) of strut pair `(i, j)` along `dx`: the gap's
+/// rate is at most L = max over a's ends of |dx| + the same over b's (a point of an axis
+/// moves by a convex combination of its ends' displacements), so the pair may advance by
+/// (g(τ) − KEEP g(0))/L, and again from there, until that is within a thousandth of the
+/// gap kept or τ reaches 1.
+fn advance(struts: &Struts, (i, j): (u32, u32), x: &[Vector3<f64>], dx: &[Vector3<f64>]) -> f64 {
+    let ([pa, qa], [pb, qb]) = (struts.ends(i), struts.ends(j));
+    let rate = dx[pa].norm().max(dx[qa].norm()) + dx[pb].norm().max(dx[qb].norm());
+    let radii = struts.radius(i) + struts.radius(j);
+    let gap_at = |tau: f64| {
+        let at = |n: usize| x[n] + dx[n] * tau;
+        Segment::new(at(pa), at(qa)).closest(&Segment::new(at(pb), at(qb))).distance - radii
+    };
+    let g0 = gap_at(0.0);
+    if rate == 0.0 || !(g0 > 0.0) {
+        return 1.0;
+    }
+    let kept = KEEP * g0;
+    let mut tau = 0.0;
+    let mut g = g0;
+    for _ in 0..ADVANCES {
+        let step = (g - kept) / rate;
+        if tau + step >= 1.0 {
+            return 1.0;
+        }
+        tau += step;
+        g = gap_at(tau);
+        if g - kept <= 1e-3 * (g0 - kept) {
+            break;
+        }
+    }
+    tau
+}
+
+/// Conservative advancements per pair before the fraction reached is taken (it is safe at
+/// any count; a pair sliding along another converges slowest).
+const ADVANCES: usize = 64;
