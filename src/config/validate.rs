@@ -168,7 +168,7 @@ impl CaseConfig {
                     );
                 }
             }
-            check_transient(name, t, model, p);
+            check_transient(name, t, model, self.contact.is_some(), p);
             check_transient_loading(name, t, self.model_has_supports(), model, p);
             if name == "free_vibration" && t.initial.as_ref().is_some_and(|i| i.from == Some(StartFrom::Folded)) {
                 p.add(
@@ -218,6 +218,7 @@ impl CaseConfig {
                         names: &names,
                         damping: &damping,
                         gravity: self.gravity.is_some(),
+                        contact: self.contact.is_some(),
                         supported: self.model_has_supports(),
                     };
                     spec.check(&format!("{at}.{}", spec.key()), &context, p);

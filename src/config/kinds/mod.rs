@@ -92,6 +92,8 @@ pub(in crate::config) struct EntryCheck<'a> {
     pub damping: &'a [&'a str],
     /// Whether the config sets gravity.
     pub gravity: bool,
+    /// Whether the case has contact.
+    pub contact: bool,
     /// Whether the model has a support.
     pub supported: bool,
 }

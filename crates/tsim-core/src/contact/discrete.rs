@@ -35,8 +35,9 @@ struct Term {
     /// ∇g at the midpoint and at the end.
     mid: Vec12,
     end: Vec12,
-    /// The struts' ends at the midpoint (for ∇²g there); unused for the ground.
-    segments: Option<(Segment, Segment)>,
+    /// The struts' axes and closest points at the midpoint (for ∇²g there); `None` for
+    /// the ground, where g is linear.
+    pair: Option<(Segment, Segment, SegmentDistance)>,
 }
 
 /// The contacts of a structure over the step being solved.
@@ -108,7 +109,7 @@ impl StepContact {
                         dslope,
                         mid: g,
                         end: g,
-                        segments: None,
+                        pair: None,
                     });
                 }
             }
@@ -134,25 +135,23 @@ impl StepContact {
     /// Struts `(i, j)` over the step, a term where the barrier acts at either end.
     fn strut_pair(&mut self, struts: &Struts, (i, j): (u32, u32), mid: &[Vector3<f64>]) {
         let radii = struts.radius(i) + struts.radius(j);
-        let segments = |x: &[Vector3<f64>]| (struts.segment(i, x), struts.segment(j, x));
-        let distance = |x: &[Vector3<f64>]| {
-            let (a, b) = segments(x);
-            SegmentDistance::new(&a, &b)
-        };
-        let (ga, end) = (distance(&self.start).distance - radii, distance(&self.end));
-        let Some((slope, dslope)) = discrete_slope(&self.contact.barrier, ga, end.distance - radii) else {
+        let at = |x: &[Vector3<f64>]| (struts.segment(i, x), struts.segment(j, x));
+        let distance = |(a, b): (Segment, Segment)| SegmentDistance::new(&a, &b);
+        let (ga, end) = (distance(at(&self.start)).closest.distance - radii, distance(at(&self.end)));
+        let Some((slope, dslope)) = discrete_slope(&self.contact.barrier, ga, end.closest.distance - radii) else {
             return;
         };
         let ([pa, qa], [pb, qb]) = (struts.ends(i), struts.ends(j));
-        let (a, b) = segments(mid);
+        let (a, b) = at(mid);
+        let mid = distance((a, b));
         self.terms.push(Term {
             nodes: [pa, qa, pb, qb],
             count: 4,
             slope,
             dslope,
-            mid: SegmentDistance::new(&a, &b).gradient,
+            mid: mid.gradient,
             end: end.gradient,
-            segments: Some((a, b)),
+            pair: Some((a, b, mid)),
         });
     }
 
@@ -161,12 +160,10 @@ impl StepContact {
     /// symmetric).
     pub fn add_tangent(&self, dofs: &dyn super::Dofs, k: &mut (impl TangentSink + ?Sized)) {
         for t in &self.terms {
-            let curvature = t.segments.map_or(Mat12::zeros(), |(a, b)| {
-                let sd = SegmentDistance::new(&a, &b);
-                sd.hessian(&a, &b) * (0.5 * t.slope)
-            });
+            let curvature = t.pair.map_or(Mat12::zeros(), |(a, b, sd)| sd.hessian(&a, &b) * (0.5 * t.slope));
             let h = t.mid * t.end.transpose() * t.dslope + curvature;
             super::add_block(dofs, &t.nodes[..t.count], &h, k);
         }
     }
 }
+

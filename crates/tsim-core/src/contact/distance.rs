@@ -10,8 +10,8 @@
 //! For skew segments crossing inside both, this is the distance of their lines, whose
 //! Hessian it reproduces; for an end against a segment, a point–segment distance.
 
-use crate::model::clearance::Segment;
-use nalgebra::{SMatrix, SVector, Vector3};
+use crate::model::clearance::{Closest, Segment};
+use nalgebra::{SMatrix, SVector};
 
 /// 12 coordinates: a0, a1, b0, b1.
 pub type Vec12 = SVector<f64, 12>;
@@ -21,16 +21,9 @@ pub type Mat12 = SMatrix<f64, 12, 12>;
 /// The distance of two segments and its derivatives in their ends' coordinates.
 #[derive(Clone, Copy, Debug)]
 pub struct SegmentDistance {
-    /// d [m] (> 0 where used: strut axes in contact are at least their radii apart).
-    pub distance: f64,
-    /// The closest point's parameter on a.
-    pub s: f64,
-    /// The closest point's parameter on b.
-    pub t: f64,
-    /// The closest point on a.
-    pub on_a: Vector3<f64>,
-    /// The closest point on b.
-    pub on_b: Vector3<f64>,
+    /// The closest points and their distance d [m] (> 0 where used: strut axes in contact
+    /// are at least their radii apart).
+    pub closest: Closest,
     /// ∂d/∂x.
     pub gradient: Vec12,
 }
@@ -49,20 +42,13 @@ impl SegmentDistance {
         for (k, ck) in coeff.iter().enumerate() {
             gradient.fixed_rows_mut::<3>(3 * k).copy_from(&(w * (ck / c.distance)));
         }
-        SegmentDistance {
-            distance: c.distance,
-            s: c.s,
-            t: c.t,
-            on_a: c.on_a,
-            on_b: c.on_b,
-            gradient,
-        }
+        SegmentDistance { closest: c, gradient }
     }
 
     /// ∂²d/∂x² of segments `a`, `b` (those this was made from).
     pub fn hessian(&self, a: &Segment, b: &Segment) -> Mat12 {
-        let (s, t, d) = (self.s, self.t, self.distance);
-        let w = self.on_b - self.on_a;
+        let Closest { s, t, distance: d, .. } = self.closest;
+        let w = self.closest.on_b - self.closest.on_a;
         let (ea, eb) = (a.q - a.p, b.q - b.p);
         let c = weights(s, t);
         // G_xx = 2 (c cᵀ ⊗ I).
@@ -129,6 +115,7 @@ fn weights(s: f64, t: f64) -> [f64; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Vector3;
 
     fn segments(x: &Vec12) -> (Segment, Segment) {
         let p = |k: usize| Vector3::new(x[3 * k], x[3 * k + 1], x[3 * k + 2]);
@@ -153,7 +140,10 @@ mod tests {
             let x = Vec12::from_row_slice(case);
             let (a, b) = segments(&x);
             let sd = SegmentDistance::new(&a, &b);
-            let inside = [sd.s, sd.t].iter().filter(|p| **p > INSIDE && **p < 1.0 - INSIDE).count();
+            let inside = [sd.closest.s, sd.closest.t]
+                .iter()
+                .filter(|p| **p > INSIDE && **p < 1.0 - INSIDE)
+                .count();
             assert_eq!(inside, free, "{case:?}");
             let hess = sd.hessian(&a, &b);
             for i in 0..12 {
@@ -164,7 +154,7 @@ mod tests {
                 let (ap, bp) = segments(&xp);
                 let (am, bm) = segments(&xm);
                 let (dp, dm) = (SegmentDistance::new(&ap, &bp), SegmentDistance::new(&am, &bm));
-                let slope = (dp.distance - dm.distance) / (2.0 * h);
+                let slope = (dp.closest.distance - dm.closest.distance) / (2.0 * h);
                 assert!((slope - sd.gradient[i]).abs() < 1e-6, "case {case:?} d/dx{i}");
                 let column = (dp.gradient - dm.gradient) / (2.0 * h);
                 for j in 0..12 {

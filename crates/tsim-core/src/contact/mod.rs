@@ -25,7 +25,7 @@ pub use barrier::{Barrier, BarrierValue};
 pub use discrete::StepContact;
 pub use distance::{Mat12, SegmentDistance, Vec12};
 
-use crate::model::clearance::{PairClearance, Segment, Struts, Workspace};
+use crate::model::clearance::{Closest, PairClearance, Segment, Struts, Workspace};
 use crate::model::Model;
 use crate::solve::TangentSink;
 use nalgebra::Vector3;
@@ -92,11 +92,22 @@ pub struct Active {
     /// member gets −force · normal; a node on the ground gets +force · normal).
     pub normal: Vector3<f64>,
     /// The nodes whose coordinates the gap depends on: a0, a1, b0, b1 of a strut pair
-    /// (the first member's ends first), or the node four times for the ground.
+    /// (in the order of the struts' search), or the node four times for the ground.
     nodes: [usize; 4],
     barrier: BarrierValue,
     /// ∂g/∂x of the nodes (ground: the normal, then zeros).
     gradient: Vec12,
+    /// A strut pair's closest points (for ∇²g); `None` for the ground, where g is linear.
+    closest: Option<Closest>,
+}
+
+/// Where a contact is and how its gap moves with the nodes.
+struct Geometry {
+    nodes: [usize; 4],
+    gradient: Vec12,
+    closest: Option<Closest>,
+    point: Vector3<f64>,
+    normal: Vector3<f64>,
 }
 
 /// The contacts of a structure at its current positions, with the buffers the searches
@@ -192,12 +203,18 @@ impl ContactSet {
                 let gap = Contact::ground_gap(ground, r, x[n]);
                 let mut gradient = Vec12::zeros();
                 gradient.fixed_rows_mut::<3>(0).copy_from(&ground.normal);
-                let point = x[n] - ground.normal * (gap + r);
-                self.add(Touch::Ground(n), gap, [n; 4], gradient, point, ground.normal);
+                let at = Geometry {
+                    nodes: [n; 4],
+                    gradient,
+                    closest: None,
+                    point: x[n] - ground.normal * (gap + r),
+                    normal: ground.normal,
+                };
+                self.add(Touch::Ground(n), gap, at);
             }
         }
         for c in &self.active {
-            let count = if matches!(c.touch, Touch::Ground(_)) { 1 } else { 4 };
+            let count = if c.closest.is_some() { 4 } else { 1 };
             for (k, &n) in c.nodes[..count].iter().enumerate() {
                 for a in 0..3 {
                     p[3 * n + a] += c.barrier.slope * c.gradient[3 * k + a];
@@ -208,65 +225,64 @@ impl ContactSet {
 
     /// Struts `(i, j)` at `x`: an active contact if within the activation distance.
     fn strut_pair(&mut self, struts: &Struts, (i, j): (u32, u32), x: &[Vector3<f64>]) {
-        let (a, b) = (struts.segment(i, x), struts.segment(j, x));
-        let radii = struts.radius(i) + struts.radius(j);
-        // Within the activation distance only if the axes are within it plus the radii:
-        // the cheap test first.
-        let sd = SegmentDistance::new(&a, &b);
-        let gap = sd.distance - radii;
-        let ([ma, mb], [pa, qa], [pb, qb]) = ([struts.member(i), struts.member(j)], struts.ends(i), struts.ends(j));
-        let (touch, nodes, gradient, normal) = if ma < mb {
-            (Touch::Struts([ma, mb]), [pa, qa, pb, qb], sd.gradient, sd.on_b - sd.on_a)
-        } else {
-            // The lower member first: swap the halves of the gradient.
-            let mut g = Vec12::zeros();
-            g.fixed_rows_mut::<6>(0).copy_from(&sd.gradient.fixed_rows::<6>(6));
-            g.fixed_rows_mut::<6>(6).copy_from(&sd.gradient.fixed_rows::<6>(0));
-            (Touch::Struts([mb, ma]), [pb, qb, pa, qa], g, sd.on_a - sd.on_b)
+        let sd = SegmentDistance::new(&struts.segment(i, x), &struts.segment(j, x));
+        let c = sd.closest;
+        let ([pa, qa], [pb, qb]) = (struts.ends(i), struts.ends(j));
+        let (ma, mb) = (struts.member(i), struts.member(j));
+        // Named by the lower member first, the normal pointing away from it.
+        let normal = (c.on_b - c.on_a) / c.distance * if ma < mb { 1.0 } else { -1.0 };
+        let contact = Geometry {
+            nodes: [pa, qa, pb, qb],
+            gradient: sd.gradient,
+            closest: Some(c),
+            point: 0.5 * (c.on_a + c.on_b),
+            normal,
         };
-        let normal = normal / sd.distance;
-        self.add(touch, gap, nodes, gradient, 0.5 * (sd.on_a + sd.on_b), normal);
+        self.add(
+            Touch::Struts([ma.min(mb), ma.max(mb)]),
+            c.distance - struts.radius(i) - struts.radius(j),
+            contact,
+        );
     }
 
     /// Adds a contact at gap `gap` if active; a gap ≤ 0 is an overlap: infinite energy,
     /// and a NaN force on its nodes, so that no solve converges there (admissible iterates
     /// never get there; a state that starts so is refused by its stage).
-    fn add(&mut self, touch: Touch, gap: f64, nodes: [usize; 4], gradient: Vec12, point: Vector3<f64>, normal: Vector3<f64>) {
-        if !(gap > 0.0) {
-            self.energy = f64::INFINITY;
-            let barrier = BarrierValue {
-                energy: f64::INFINITY,
-                slope: f64::NAN,
-                curvature: 0.0,
-            };
-            self.active.push(Active {
-                touch,
-                gap,
-                force: f64::NAN,
-                point,
-                normal,
-                nodes,
-                barrier,
-                gradient,
-            });
+    fn add(&mut self, touch: Touch, gap: f64, at: Geometry) {
+        let Geometry {
+            nodes,
+            gradient,
+            closest,
+            point,
+            normal,
+        } = at;
+        let barrier = if gap > 0.0 {
+            match self.contact.barrier.at(gap) {
+                Some(b) => b,
+                None => return,
+            }
+        } else {
             if self.overlap.is_none_or(|(_, g)| gap < g) {
                 self.overlap = Some((touch, gap));
             }
-            return;
-        }
-        if let Some(barrier) = self.contact.barrier.at(gap) {
-            self.energy += barrier.energy;
-            self.active.push(Active {
-                touch,
-                gap,
-                force: -barrier.slope,
-                point,
-                normal,
-                nodes,
-                barrier,
-                gradient,
-            });
-        }
+            BarrierValue {
+                energy: f64::INFINITY,
+                slope: f64::NAN,
+                curvature: 0.0,
+            }
+        };
+        self.energy += barrier.energy;
+        self.active.push(Active {
+            touch,
+            gap,
+            force: -barrier.slope,
+            point,
+            normal,
+            nodes,
+            barrier,
+            gradient,
+            closest,
+        });
     }
 
     /// Keeps `listed` holding every pair within the activation distance at `x`: rebuilt
@@ -299,13 +315,16 @@ impl ContactSet {
     /// point (the residual is exact).
     pub fn add_tangent(&self, x: &[Vector3<f64>], dofs: &dyn Dofs, factor: f64, k: &mut (impl TangentSink + ?Sized)) {
         for c in &self.active {
-            let (count, hessian) = match c.touch {
-                Touch::Struts(_) => {
+            let (count, hessian) = match c.closest {
+                Some(closest) => {
                     let seg = |a: usize, b: usize| Segment::new(x[c.nodes[a]], x[c.nodes[b]]);
-                    let (a, b) = (seg(0, 1), seg(2, 3));
-                    (4, SegmentDistance::new(&a, &b).hessian(&a, &b) * c.barrier.slope)
+                    let sd = SegmentDistance {
+                        closest,
+                        gradient: c.gradient,
+                    };
+                    (4, sd.hessian(&seg(0, 1), &seg(2, 3)) * c.barrier.slope)
                 }
-                Touch::Ground(_) => (1, Mat12::zeros()),
+                None => (1, Mat12::zeros()),
             };
             let h = (c.gradient * c.gradient.transpose() * c.barrier.curvature + hessian) * factor;
             add_block(dofs, &c.nodes[..count], &h, k);
@@ -441,3 +460,4 @@ fn advance(struts: &Struts, (i, j): (u32, u32), x: &[Vector3<f64>], dx: &[Vector
 /// Conservative advancements per pair before the fraction reached is taken (it is safe at
 /// any count; a pair sliding along another converges slowest).
 const ADVANCES: usize = 64;
+

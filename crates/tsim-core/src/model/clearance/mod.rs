@@ -19,7 +19,7 @@ mod segment;
 mod track;
 
 pub use grid::{overlapping_all, Aabb, Grid};
-pub use segment::Segment;
+pub use segment::{Closest, Segment};
 pub use track::{Event, EventKind, Tracker};
 
 use super::{MemberKind, Model};

@@ -16,9 +16,13 @@ pub struct Segment {
 /// The closest points `a.p + s (a.q − a.p)` and `b.p + t (b.q − b.p)`, s, t ∈ [0, 1].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Closest {
+    /// The parameter of the point on a.
     pub s: f64,
+    /// The parameter of the point on b.
     pub t: f64,
+    /// The point on a [m].
     pub on_a: Vector3<f64>,
+    /// The point on b [m].
     pub on_b: Vector3<f64>,
     /// |on_b − on_a| [m].
     pub distance: f64,
