@@ -167,3 +167,63 @@ impl StepContact {
     }
 }
 
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::tests::{crossing, AllFree};
+
+    /// The forces over a step from `start` to `end`.
+    fn forces(contact: &Arc<Contact>, start: &[Vector3<f64>], end: &[Vector3<f64>]) -> (StepContact, Vec<f64>) {
+        let mut step = StepContact::new(Arc::clone(contact));
+        step.start_step(start);
+        let mid: Vec<Vector3<f64>> = start.iter().zip(end).map(|(a, b)| 0.5 * (a + b)).collect();
+        let mut p = vec![0.0; 3 * start.len()];
+        step.at_midpoint(&mid, &mut p);
+        (step, p)
+    }
+
+    /// A step that takes the crossing struts and the grounded node closer (by 2e-4 m):
+    /// the forces' work is the barrier energy's change (exactly for the ground, to the
+    /// step's third order for the pair), and the step tangent is the derivative of the
+    /// forces in the end coordinates (central differences, step 1e-9 m; 1e-5 of the
+    /// largest entry as in the contact set's test).
+    #[test]
+    fn the_step_forces_do_the_energy_s_work_and_their_tangent_is_their_derivative() {
+        let (contact, start) = crossing();
+        // a0 towards the ground, b (nodes 2, 3) towards a.
+        let mut end = start.clone();
+        for n in [0, 2, 3] {
+            end[n].z -= 2e-4;
+        }
+        let (step, p) = forces(&contact, &start, &end);
+        assert_eq!(step.terms.len(), 2, "the pair and the ground");
+        let energy = |x: &[Vector3<f64>]| {
+            let mut set = super::super::ContactSet::new(Arc::clone(&contact));
+            set.evaluate(x, &mut vec![0.0; 3 * x.len()]);
+            set.energy
+        };
+        let work: f64 = (0..12).map(|i| p[i] * (end[i / 3][i % 3] - start[i / 3][i % 3])).sum();
+        let change = energy(&end) - energy(&start);
+        println!("work {work:e} J, energy change {change:e} J");
+        assert!((work - change).abs() <= 1e-6 * change.abs(), "{work} {change}");
+        let mut k = faer::Mat::<f64>::zeros(12, 12);
+        step.add_tangent(&AllFree, &mut k);
+        let largest = (0..12)
+            .flat_map(|i| (0..12).map(move |j| (i, j)))
+            .map(|(i, j)| k[(i, j)].abs())
+            .fold(0.0, f64::max);
+        let h = 1e-9;
+        for j in 0..12 {
+            let at = |s: f64| {
+                let mut y = end.clone();
+                y[j / 3][j % 3] += s;
+                forces(&contact, &start, &y).1
+            };
+            let (plus, minus) = (at(h), at(-h));
+            for i in 0..12 {
+                let fd = (plus[i] - minus[i]) / (2.0 * h);
+                assert!((fd - k[(i, j)]).abs() <= 1e-5 * largest, "K[{i},{j}] {} vs {fd}", k[(i, j)]);
+            }
+        }
+    }
+}

@@ -461,3 +461,133 @@ fn advance(struts: &Struts, (i, j): (u32, u32), x: &[Vector3<f64>], dx: &[Vector
 /// any count; a pair sliding along another converges slowest).
 const ADVANCES: usize = 64;
 
+#[cfg(test)]
+pub(super) mod tests {
+    use super::*;
+    use crate::model::clearance::Search;
+    use crate::model::{Member, MemberKind, Node};
+    use nalgebra::Rotation3;
+
+    /// Two skew struts within the activation distance, the upper one's axis off the lower
+    /// one's middle, and node a0 within it of a tilted ground: (contact, positions).
+    pub(super) fn crossing() -> (Arc<Contact>, Vec<Vector3<f64>>) {
+        let node = |id: &str| Node {
+            id: id.into(),
+            xyz: Vector3::zeros(),
+            support: [false; 3],
+        };
+        let strut = |id: &str, a, b| Member {
+            id: id.into(),
+            nodes: [a, b],
+            kind: MemberKind::Strut,
+            groups: vec![],
+        };
+        let model = Model {
+            nodes: ["a0", "a1", "b0", "b1"].map(node).into(),
+            members: vec![strut("a", 0, 1), strut("b", 2, 3)],
+            node_groups: Default::default(),
+        };
+        let r = 0.01;
+        let struts = Arc::new(Struts::new(&model, &[r; 2], Search::AllPairs));
+        let mut x = vec![
+            Vector3::new(-1.0, 0.1, 0.05),
+            Vector3::new(1.0, -0.1, -0.05),
+            Vector3::new(0.3, -1.0, 2.0 * r),
+            Vector3::new(-0.2, 1.0, 2.0 * r + 3e-4),
+        ];
+        // b lifted so that the surfaces are 5e-4 m apart, inside the 1e-3 m activation.
+        let gap = Segment::new(x[0], x[1]).closest(&Segment::new(x[2], x[3])).distance - 2.0 * r;
+        for p in &mut x[2..] {
+            p.z += 5e-4 - gap;
+        }
+        // A tilted ground 5e-4 m below a0's surface (a0 a ball of radius r).
+        let normal = Vector3::new(0.1, 0.0, 1.0).normalize();
+        let ground = Ground {
+            point: x[0] - normal * (r + 5e-4),
+            normal,
+        };
+        let contact = Contact::new(&model, Some(struts), &[r; 2], Some(ground), Barrier::with_energy(1e-3, 1.0));
+        (Arc::new(contact), x)
+    }
+
+    /// The forces of every contact and their energy at positions `x`.
+    fn forces(contact: &Arc<Contact>, x: &[Vector3<f64>]) -> (Vec<Vector3<f64>>, f64, usize) {
+        let mut set = ContactSet::new(Arc::clone(contact));
+        let mut p = vec![0.0; 3 * x.len()];
+        set.evaluate(x, &mut p);
+        let f = (0..x.len()).map(|n| Vector3::new(p[3 * n], p[3 * n + 1], p[3 * n + 2])).collect();
+        (f, set.energy, set.active.len())
+    }
+
+    /// A strut pair's contact forces are balanced and central (no net force or moment:
+    /// a rigid motion of the pair is not resisted), and moving both struts rigidly
+    /// (rotation and translation, the ground left out) keeps the gap's energy and rotates
+    /// the forces with them: objective. 1e-12 relative: round-off of forces of order 1e3 N
+    /// over coordinates of order 1.
+    #[test]
+    fn strut_contact_forces_are_balanced_and_objective() {
+        let (contact, x) = crossing();
+        let pair = Arc::new(Contact {
+            ground: None,
+            ..(*contact).clone()
+        });
+        let (f, energy, active) = forces(&pair, &x);
+        assert_eq!(active, 1);
+        let scale = f.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        assert!(scale > 0.0);
+        let net: Vector3<f64> = f.iter().sum();
+        let moment: Vector3<f64> = x.iter().zip(&f).map(|(x, f)| x.cross(f)).sum();
+        assert!(net.norm() <= 1e-12 * scale && moment.norm() <= 1e-12 * scale, "{net:?} {moment:?}");
+        let rotation = Rotation3::from_euler_angles(0.3, -0.7, 1.1);
+        let shift = Vector3::new(2.0, -3.0, 0.5);
+        let moved: Vec<Vector3<f64>> = x.iter().map(|p| rotation * p + shift).collect();
+        let (g, moved_energy, _) = forces(&pair, &moved);
+        assert!((moved_energy / energy - 1.0).abs() <= 1e-12, "{energy} {moved_energy}");
+        for (a, b) in f.iter().zip(&g) {
+            assert!((rotation * a - b).norm() <= 1e-12 * scale, "{a:?} {b:?}");
+        }
+    }
+
+    /// The tangent the contacts add is the derivative of their force: against central
+    /// differences of `evaluate` (step 1e-8 m, inside every gap's 1e-4 m; truncation
+    /// ~h² b‴ ≈ 1e-16 · 1e12, round-off ~ε p / h ≈ 1e-5 of entries ~1e6 N/m: 1e-5 relative).
+    #[test]
+    fn the_contact_tangent_is_the_force_derivative() {
+        let (contact, x) = crossing();
+        let mut set = ContactSet::new(Arc::clone(&contact));
+        let mut p = vec![0.0; 12];
+        set.evaluate(&x, &mut p);
+        assert_eq!(set.active.len(), 2, "a strut pair and the ground");
+        let mut k = faer::Mat::<f64>::zeros(12, 12);
+        set.add_tangent(&x, &AllFree, 1.0, &mut k);
+        let h = 1e-8;
+        let largest = (0..12)
+            .flat_map(|i| (0..12).map(move |j| (i, j)))
+            .map(|(i, j)| k[(i, j)].abs())
+            .fold(0.0, f64::max);
+        for j in 0..12 {
+            let at = |s: f64| {
+                let mut y = x.clone();
+                y[j / 3][j % 3] += s;
+                forces(&contact, &y).0
+            };
+            let (plus, minus) = (at(h), at(-h));
+            for i in 0..12 {
+                let fd = (plus[i / 3][i % 3] - minus[i / 3][i % 3]) / (2.0 * h);
+                assert!((fd - k[(i, j)]).abs() <= 1e-5 * largest, "K[{i},{j}] {} vs {fd}", k[(i, j)]);
+            }
+        }
+    }
+
+    /// Every coordinate a free DOF, in order.
+    pub(super) struct AllFree;
+
+    impl Dofs for AllFree {
+        fn free(&self, n: usize, a: usize) -> Option<usize> {
+            Some(3 * n + a)
+        }
+        fn owner(&self, i: usize) -> (usize, usize) {
+            (i / 3, i % 3)
+        }
+    }
+}
