@@ -38,9 +38,9 @@ pub struct ContactSpec {
     /// The barrier's energy scale κ ĝ² [J]: a gap holds up to ~30 times it before it is
     /// lost in round-off, and stores about a sixth of it at half the activation distance;
     /// it sets where in (0, ĝ) a contact carries its load, not whether it holds. Default:
-    /// the structure's strain energy after substitution, or its weight times its size
-    /// where larger (1 J for neither): more than any motion of the structure can bring
-    /// to one contact.
+    /// the structure's strain energy after substitution, or the largest force on it (its
+    /// weight plus the largest transient's loads) times its size where larger (1 J for
+    /// neither): about what the structure's motion can bring to one contact.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub energy: Option<f64>,
 }
@@ -136,9 +136,10 @@ impl CaseConfig {
         } else {
             DISTANCE_OF_SIZE * model.size()
         });
-        let fall = structure.constant_load().iter().sum::<Vector3<f64>>().norm() * model.size();
+        let weight = structure.constant_load().iter().sum::<Vector3<f64>>().norm();
+        let work = (weight + self.transient_load(model)) * model.size();
         let strain = structure.strain_energy(&state.positions);
-        let energy = c.energy.unwrap_or(if strain.max(fall) > 0.0 { strain.max(fall) } else { 1.0 });
+        let energy = c.energy.unwrap_or(if strain.max(work) > 0.0 { strain.max(work) } else { 1.0 });
         let struts = c.struts.then(|| Arc::new(Struts::new(model, &radius, Search::Auto)));
         let ground = c.ground.as_ref().map(|g| Ground {
             point: g.point.into(),
@@ -151,5 +152,28 @@ impl CaseConfig {
             ground,
             Barrier::with_energy(distance, energy),
         ))))
+    }
+
+    /// The largest total force a transient's loads put on `model` [N]: each load's |F|
+    /// times the nodes it acts on, summed over the stage (time functions taken at 1).
+    fn transient_load(&self, model: &Model) -> f64 {
+        let nodes = |ids: &[String], groups: &[String]| model.node_set(ids, groups).map_or(0, |n| n.len()) as f64;
+        let paper = [&self.free_vibration, &self.deployment].into_iter().flatten();
+        let listed = self.stages.iter().filter_map(|e| e.transient.as_ref());
+        paper
+            .chain(listed)
+            .map(|t| {
+                let launch = t
+                    .load
+                    .as_ref()
+                    .map_or(0.0, |l| Vector3::from(l.force).norm() * nodes(&[], &l.groups));
+                let nodal: f64 = t
+                    .loads
+                    .iter()
+                    .map(|l| Vector3::from(l.force).norm() * nodes(&l.nodes, &l.groups))
+                    .sum();
+                launch + nodal
+            })
+            .fold(0.0, f64::max)
     }
 }

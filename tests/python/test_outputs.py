@@ -95,10 +95,10 @@ def test_every_group_opens_in_xarray_with_named_dims(sample):
     for g in ["free_vibration", "folding", "deployment"]:
         # support: the tower's 8 supported directions (5 base nodes in z, b0_0 in x and y,
         # b0_1 in one more).
-        # pair: a strut pair's two members; clearance_event: none in the sample.
+        # pair: a strut pair's two members; clearance_event, contact: none in the sample.
         expected_dims[g] = {
             "time": len(recorded_steps(STEPS[g])), "node": 20, "member": 50, "xyz": 3, "support": 8,
-            "pair": 2, "clearance_event": 0,
+            "pair": 2, "clearance_event": 0, "contact": 0,
         }
     for g in GROUPS:
         ds = xr.open_dataset(path, engine="h5netcdf", group=g)

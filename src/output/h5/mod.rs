@@ -18,6 +18,7 @@
 //! and flushed at chunk boundaries and at the end of each stage, which is what a SWMR reader
 //! sees grow.
 
+mod contacts;
 mod netcdf;
 mod series;
 #[cfg(test)]

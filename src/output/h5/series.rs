@@ -1,6 +1,7 @@
 //! The streamed groups of `result.h5`: one time-stepping stage's datasets, its buffered
-//! block of steps, and its clearance event table.
+//! block of steps, its clearance event table and its contact table.
 
+use super::contacts::ContactTable;
 use super::netcdf::{append_chunk, append_rows, extend_vectors, extendable};
 use super::netcdf::{describe, str_attr, varlen, Dims};
 use super::{Error, GZIP_LEVEL, MIN_CLEARANCE, MIN_CLEARANCE_PAIR, PAIR};
@@ -28,6 +29,7 @@ pub(super) struct Series {
     /// Whether the stage changes rest lengths in time (`rest_length`, `actuator_work`).
     actuated: bool,
     events: EventTable,
+    contacts: ContactTable,
     written: usize,
     buffered: usize,
     chunk: usize,
@@ -239,6 +241,7 @@ impl Series {
         }
         let (clearance, events) = clearance_columns(&mut g, folding, chunk)?;
         columns.extend(clearance);
+        let contacts = ContactTable::create(&mut g, folding)?;
         let columns = columns.into_iter().map(|ds| (ds, Vec::new())).collect();
         Ok(Series {
             columns,
@@ -247,6 +250,7 @@ impl Series {
             modes,
             actuated,
             events,
+            contacts,
             written: 0,
             buffered: 0,
             chunk,
@@ -318,6 +322,7 @@ impl Series {
         if let Some(c) = f.clearance {
             self.events.append(c.events)?;
         }
+        self.contacts.append(f.step, f.time, f.contacts)?;
         self.buffered += 1;
         let full = self.buffered == self.chunk;
         if full {

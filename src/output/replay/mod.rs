@@ -9,7 +9,9 @@
 //!   legend text with the scales' maxima. When the closest pair of non-adjacent struts is
 //!   within [`NEAR_RADII`] times the larger radius, its struts are drawn again twice as
 //!   thick in magenta with the link between their closest points, and the legend names
-//!   them with their clearance.
+//!   them with their clearance. Contacts (`contact`) are orange arrows from each contact
+//!   point along its normal, lengths in proportion to the forces, the legend counting them
+//!   with the largest force.
 //! - `/tsim/energy` (`energy.Energy`): kinetic, strain, damping, external and total energy.
 //! - `/tsim/members` (`memberforces.MemberForces`): every member's id and force; in a Plot
 //!   panel, `/tsim/members.members[:]{id=="strut0_0"}.force`.
@@ -50,7 +52,9 @@ use encode::{encode_lines, msg, prost_len, put_varint, MemberRecords, NodeRecord
 use foxglove::messages::{line_primitive, LinePrimitive, Point3, Pose, Quaternion, SceneEntity, SceneUpdate, TextPrimitive, Timestamp};
 use foxglove::Encode;
 use nalgebra::Vector3;
-use scene::{legend_position, level, node_size, sig3, LEGEND_FONT, LEVELS, MAGENTA, SLACK_FRACTION, STRUT_WIDTH, TEXT};
+use scene::{
+    contact_arrows, legend_position, level, node_size, sig3, ContactArrow, LEGEND_FONT, LEVELS, MAGENTA, SLACK_FRACTION, STRUT_WIDTH, TEXT,
+};
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
@@ -77,6 +81,8 @@ pub struct McapRecorder {
     member_ids: Vec<String>,
     /// The closest strut pair of the state being logged, when the frame has one.
     nearest: Option<Nearest>,
+    /// The contacts of the state being logged (none without contact).
+    contacts: Vec<ContactArrow>,
     /// The `/tsim/members` message's member records, encoded once.
     member_records: MemberRecords,
     /// The end nodes of the scene's lines, one list per (kind, state), reused between steps.
@@ -114,6 +120,7 @@ struct HeldFrame {
     forces: Vec<f64>,
     energy: Energy,
     nearest: Option<Nearest>,
+    contacts: Vec<ContactArrow>,
 }
 
 struct Channels {
@@ -160,6 +167,7 @@ impl McapRecorder {
             members: Vec::new(),
             member_ids: Vec::new(),
             nearest: None,
+            contacts: Vec::new(),
             member_records: MemberRecords::default(),
             buckets: vec![Vec::new(); 2 * (1 + 2 * LEVELS)],
             lines: Vec::new(),
@@ -300,6 +308,9 @@ impl McapRecorder {
             let [a, b] = n.members.map(|m| self.member_ids[m].as_str());
             text.push_str(&format!("\nclosest struts {a}, {b}: clearance {} m (magenta)", sig3(n.clearance)));
         }
+        if let Some(max) = self.contacts.iter().map(|c| c.force).reduce(f64::max) {
+            text.push_str(&format!("\ncontacts: {}, orange arrows, max {} N", self.contacts.len(), sig3(max)));
+        }
         let legend = TextPrimitive {
             pose: Some(Pose {
                 position: Some(foxglove::messages::Vector3 { x: at.x, y: at.y, z: at.z }),
@@ -325,6 +336,7 @@ impl McapRecorder {
         // may continue anywhere in the message.
         let tail = SceneEntity {
             lines: close.map(|n| self.highlight(&n, positions)).into_iter().collect(),
+            arrows: contact_arrows(&self.contacts, self.node_size),
             texts: vec![legend],
             ..Default::default()
         };
@@ -350,6 +362,11 @@ impl McapRecorder {
         let stage = self.stage.clone().ok_or("MCAP: frame outside a time-stepping stage")?;
         let t = self.clock.frame_time(frame);
         let nearest = frame.clearance.and_then(|c| c.nearest);
+        let contacts = frame.contacts.iter().map(|c| ContactArrow {
+            point: c.point,
+            normal: c.normal,
+            force: c.force,
+        });
         // 1e-9: a time step that divides the interval exactly is not lost to round-off.
         let due = stage.is_static() || self.logged_at.is_none_or(|at| frame.time - at >= self.min_interval * (1.0 - 1e-9));
         self.holding = !due;
@@ -360,11 +377,15 @@ impl McapRecorder {
             h.positions.extend_from_slice(frame.positions);
             h.forces.clear();
             h.forces.extend_from_slice(frame.forces);
+            h.contacts.clear();
+            h.contacts.extend(contacts);
             return Ok(());
         }
         self.logged_at = Some(frame.time);
         let ns = self.clock.step_stamp(t);
         self.nearest = nearest;
+        self.contacts.clear();
+        self.contacts.extend(contacts);
         self.log_state(&stage, frame.step, ns, frame.positions, frame.forces, Some(frame.energy))
     }
 
@@ -374,9 +395,10 @@ impl McapRecorder {
         if !std::mem::take(&mut self.holding) {
             return Ok(());
         }
-        let h = std::mem::take(&mut self.held);
+        let mut h = std::mem::take(&mut self.held);
         let ns = self.clock.step_stamp(h.t);
         self.nearest = h.nearest;
+        std::mem::swap(&mut self.contacts, &mut h.contacts);
         let logged = self.log_state(stage, h.step, ns, &h.positions, &h.forces, Some(h.energy));
         self.held = h;
         logged
@@ -419,6 +441,7 @@ impl Recorder for McapRecorder {
         self.log_stage(record.stage, t)?;
         let ns = self.clock.step_stamp(t);
         self.nearest = record.clearance.and_then(|c| c.nearest);
+        self.contacts.clear();
         self.log_state(record.stage, 0, ns, record.positions, record.forces, None)
     }
 

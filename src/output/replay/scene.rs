@@ -3,7 +3,7 @@
 //! numbers.
 
 use crate::model::Model;
-use foxglove::messages::Color;
+use foxglove::messages::{ArrowPrimitive, Color, Pose, Quaternion};
 use nalgebra::Vector3;
 
 /// An opaque colour of red, green and blue in 0..=1.
@@ -35,6 +35,10 @@ pub(super) const GREY: Color = opaque(0.55, 0.55, 0.55);
 pub(super) const GOLD: Color = opaque(0.95, 0.70, 0.10);
 pub(super) const GREEN: Color = opaque(0.10, 0.65, 0.25);
 pub(super) const PURPLE: Color = opaque(0.60, 0.30, 0.80);
+/// Contact forces: an orange apart from the force scales and the highlight.
+pub(super) const ORANGE: Color = opaque(1.0, 0.45, 0.0);
+/// The longest contact arrow (the step's largest contact force) in node diameters.
+const ARROW_NODES: f64 = 4.0;
 /// Legend text: a teal of relative luminance 0.18, 4.6:1 against both black and white
 /// (WCAG's 4.5:1 for text), readable on Foxglove's dark and light themes alike.
 pub(super) const TEXT: Color = opaque(0.0, 0.515, 0.515);
@@ -112,4 +116,65 @@ pub(super) fn legend_position(xyz: &[Vector3<f64>], node_size: f64) -> Vector3<f
     let (lo, hi) = bounds(xyz);
     let clear = (0.1 * (hi - lo).norm()).max(4.0 * node_size);
     Vector3::new(0.5 * (lo.x + hi.x), 0.5 * (lo.y + hi.y), hi.z + clear)
+}
+
+/// A contact as the replay draws it: where, along which unit normal, and how hard [N].
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct ContactArrow {
+    pub(super) point: Vector3<f64>,
+    pub(super) normal: Vector3<f64>,
+    pub(super) force: f64,
+}
+
+/// Orange arrows from each contact point along its normal (the force on the
+/// higher-numbered strut, or on the node from the ground), their lengths in proportion to
+/// the forces, the largest `ARROW_NODES` node diameters (`node_size`) long.
+pub(super) fn contact_arrows(contacts: &[ContactArrow], node_size: f64) -> Vec<ArrowPrimitive> {
+    let largest = contacts.iter().map(|c| c.force).fold(0.0, f64::max);
+    if !(largest > 0.0) {
+        return Vec::new();
+    }
+    contacts
+        .iter()
+        .map(|c| {
+            let length = ARROW_NODES * node_size * c.force / largest;
+            ArrowPrimitive {
+                pose: Some(Pose {
+                    position: Some(foxglove::messages::Vector3 {
+                        x: c.point.x,
+                        y: c.point.y,
+                        z: c.point.z,
+                    }),
+                    orientation: Some(along(c.normal)),
+                }),
+                shaft_length: 0.7 * length,
+                shaft_diameter: 0.15 * node_size,
+                head_length: 0.3 * length,
+                head_diameter: 0.4 * node_size,
+                color: Some(ORANGE),
+            }
+        })
+        .collect()
+}
+
+/// The rotation taking +x (an arrow's direction) to unit vector `n`: about x × n by the
+/// angle between them (half-angle quaternion (1 + x·n, x × n), normalised; about z when n
+/// is −x).
+fn along(n: Vector3<f64>) -> Quaternion {
+    let (w, axis) = (1.0 + n.x, Vector3::x().cross(&n));
+    let norm = (w * w + axis.norm_squared()).sqrt();
+    if norm < 1e-12 {
+        return Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: 1.0,
+            w: 0.0,
+        };
+    }
+    Quaternion {
+        x: axis.x / norm,
+        y: axis.y / norm,
+        z: axis.z / norm,
+        w: w / norm,
+    }
 }

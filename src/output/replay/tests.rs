@@ -1,6 +1,6 @@
 use super::encode::{msg, MemberRecords};
 use super::scene::{
-    sig3, state_colour, BLUE, CABLE_WIDTH, GOLD, GREEN, GREY, LEVELS, MAGENTA, PURPLE, RED, STRUT_WIDTH, SUPPORT_SIZE, TEXT,
+    sig3, state_colour, BLUE, CABLE_WIDTH, GOLD, GREEN, GREY, LEVELS, MAGENTA, ORANGE, PURPLE, RED, STRUT_WIDTH, SUPPORT_SIZE, TEXT,
 };
 use super::*;
 use crate::model::generate::TowerSpec;
@@ -310,4 +310,52 @@ fn marks_nodes_and_supports_with_the_bytes_prost_encodes() {
 fn formats_three_significant_digits() {
     let got: Vec<_> = [0.0, 1234.4, 8.0, 0.01234, 123_456.0, -2.5e-4].map(sig3).into();
     assert_eq!(got, ["0", "1234", "8.00", "0.0123", "1.23e5", "-2.50e-4"]);
+}
+
+/// Contacts are orange arrows from their points along their normals, the largest force's
+/// the longest (4 node diameters), the others in proportion, and the legend counts them.
+#[test]
+fn draws_contact_forces_as_arrows_along_their_normals() {
+    let model = TowerSpec {
+        struts: 3,
+        stages: 1,
+        ..TowerSpec::paper()
+    }
+    .build();
+    let mut rec = scene_recorder(&model, "contacts.mcap");
+    let x = model.positions();
+    let forces = vec![1.0; model.members.len()];
+    let normal = Vector3::new(1.0, 2.0, -2.0) / 3.0;
+    rec.contacts = vec![
+        ContactArrow {
+            point: x[0],
+            normal,
+            force: 300.0,
+        },
+        ContactArrow {
+            point: x[1],
+            normal: -Vector3::x(),
+            force: 100.0,
+        },
+    ];
+    let entity = decoded_scene(&mut rec, &x, &forces);
+    assert_eq!(entity.arrows.len(), 2);
+    let length = |a: &foxglove::messages::ArrowPrimitive| a.shaft_length + a.head_length;
+    assert!((length(&entity.arrows[0]) - 4.0 * rec.node_size).abs() < 1e-12);
+    assert!((length(&entity.arrows[0]) / length(&entity.arrows[1]) - 3.0).abs() < 1e-12);
+    // The pose's rotation takes +x to the normal: q (1, 0, 0) q*.
+    for (arrow, n) in entity.arrows.iter().zip([normal, -Vector3::x()]) {
+        let q = arrow.pose.unwrap().orientation.unwrap();
+        let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q.w, q.x, q.y, q.z));
+        assert!((q * Vector3::x() - n).norm() < 1e-12, "{n:?}");
+        assert_eq!(arrow.color.unwrap(), ORANGE);
+    }
+    assert!(
+        entity.texts[0].text.contains("contacts: 2, orange arrows, max 300 N"),
+        "{}",
+        entity.texts[0].text
+    );
+    rec.contacts.clear();
+    assert!(decoded_scene(&mut rec, &x, &forces).arrows.is_empty());
+    rec.finish(&Outcome::Complete).unwrap();
 }
