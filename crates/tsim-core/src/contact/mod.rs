@@ -290,11 +290,7 @@ impl ContactSet {
     /// that an unlisted pair could have come within it.
     fn list(&mut self, struts: &Struts, x: &[Vector3<f64>]) {
         let activation = self.contact.barrier.distance;
-        let moved = if self.listed_at.len() == x.len() {
-            x.iter().zip(&self.listed_at).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max)
-        } else {
-            f64::INFINITY
-        };
+        let moved = self.moved(x);
         // Two ends of a pair each moving `moved` change their gap by at most 2 `moved`.
         if activation + 2.0 * moved <= self.reach {
             return;
@@ -349,12 +345,29 @@ impl ContactSet {
         if let Some(struts) = &contact.struts {
             let largest = dx.iter().map(|d| d.norm()).fold(0.0, f64::max);
             // Only a pair within 2 max|dx| / (1 − KEEP) can lose 1 − KEEP of its gap.
-            struts.near(x, 2.0 * largest / (1.0 - KEEP), &mut self.ws, &mut self.near);
-            for p in &self.near {
-                tau = tau.min(advance(struts, p.struts, x, dx));
+            let within = 2.0 * largest / (1.0 - KEEP);
+            if within + 2.0 * self.moved(x) <= self.reach {
+                // Every such pair is on the Verlet list: no search.
+                for k in 0..self.listed.len() {
+                    tau = tau.min(advance(struts, self.listed[k], x, dx));
+                }
+            } else {
+                struts.near(x, within, &mut self.ws, &mut self.near);
+                for p in &self.near {
+                    tau = tau.min(advance(struts, p.struts, x, dx));
+                }
             }
         }
         tau
+    }
+
+    /// How far a strut end has moved from where the Verlet list was made (∞ without a
+    /// list): a pair not on it is at least `reach` − 2 × that apart.
+    fn moved(&self, x: &[Vector3<f64>]) -> f64 {
+        if self.listed_at.len() != x.len() {
+            return f64::INFINITY;
+        }
+        x.iter().zip(&self.listed_at).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max)
     }
 
     /// [`Self::admissible`] for an increment of the free coordinates `d` scaled by `rate`.
@@ -575,6 +588,43 @@ pub(super) mod tests {
             for i in 0..12 {
                 let fd = (plus[i / 3][i % 3] - minus[i / 3][i % 3]) / (2.0 * h);
                 assert!((fd - k[(i, j)]).abs() <= 1e-5 * largest, "K[{i},{j}] {} vs {fd}", k[(i, j)]);
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// Random walks of a tower's nodes (radii up to 0.5 m, so that pairs come within
+        /// the list's reach; every fifth step ten times as long, which outruns the list),
+        /// evaluated every fourth step (so that increments start away from where the list
+        /// was kept), and increments of up to ten steps: the fraction an increment may take
+        /// is the same, bit for bit, from the Verlet list as from a search.
+        #[test]
+        fn the_verlet_list_admits_what_a_search_admits(
+            struts in 3usize..7,
+            stages in 1usize..4,
+            shifts in proptest::collection::vec(-1.0f64..1.0, 30..90),
+            step in 0.001f64..0.3,
+            radius in 0.01f64..0.5,
+        ) {
+            let model = crate::model::generate::TowerSpec { struts, stages, ..crate::model::generate::TowerSpec::paper() }.build();
+            let radii = vec![radius; model.members.len()];
+            let struts = Arc::new(Struts::new(&model, &radii, Search::Grid));
+            let contact = Arc::new(Contact::new(&model, Some(struts), &radii, None, Barrier::with_energy(0.1 * radius, 1.0)));
+            let mut listed = ContactSet::new(Arc::clone(&contact));
+            let mut x = model.positions();
+            let mut p = vec![0.0; 3 * x.len()];
+            let walk = |k: usize, n: usize, scale: f64| Vector3::from_fn(|a, _| scale * shifts[(7 * k + 3 * n + a) % shifts.len()]);
+            for k in 0..40 {
+                let jump = if k % 5 == 0 { 10.0 } else { 1.0 };
+                for (n, xn) in x.iter_mut().enumerate() {
+                    *xn += walk(k, n, jump * step);
+                }
+                if k % 4 == 0 {
+                    listed.evaluate(&x, &mut p);
+                }
+                let dx: Vec<Vector3<f64>> = (0..x.len()).map(|n| walk(k + 1, n, (k % 11) as f64 * step)).collect();
+                let searched = ContactSet::new(Arc::clone(&contact)).admissible(&x, &dx);
+                proptest::prop_assert_eq!(listed.admissible(&x, &dx), searched);
             }
         }
     }
