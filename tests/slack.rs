@@ -116,7 +116,7 @@ fn cable_census(log: &Log) -> (f64, usize, usize) {
 /// (β EA/l0 ≈ 4e3 N s/m on a ring cable: a shortening rate of 0.1 m/s is 400 N of
 /// damping), twisted by 5 kN tangential loads on the top nodes, a half sine of 0.05 s;
 /// 0.2 s at `dt`. About 15 % of the cable records are slack.
-fn twisted_prism(dt: f64) -> CaseConfig {
+fn twisted_prism(dt: f64, scheme: &str) -> CaseConfig {
     let tower = TowerSpec {
         struts: 4,
         stages: 1,
@@ -138,7 +138,7 @@ fn twisted_prism(dt: f64) -> CaseConfig {
         "name: twist\nmodel:\n  tower: {{ struts: 4, stages: 1 }}\nformfinding: {{}}\n\
          substitution: {{ strut: steel, cable: steel_cable, prestress_scale: 10.0 }}\n\
          stages:\n  - name: modes\n    eigen: {{ rayleigh: {{ alpha: 0.0, beta: 2.0e-3 }} }}\n\
-         \x20 - name: twist\n    transient:\n      dt: {dt}\n      duration: 0.2\n      rayleigh_from: modes\n      loads:\n{loads}"
+         \x20 - name: twist\n    transient:\n      dt: {dt}\n      scheme: {scheme}\n      duration: 0.2\n      rayleigh_from: modes\n      loads:\n{loads}"
     );
     parse_case(&text, "twist.yaml").unwrap_or_else(|e| panic!("{e}"))
 }
@@ -156,48 +156,68 @@ fn gap(a: &Log, b: &Log, t: f64) -> (f64, f64) {
     (dp, df)
 }
 
-/// The twisted prism at Δt = 1, ½, ¼, ⅛, 1/16 ms: no cable pushes at any step, and the
-/// positions and member forces converge as Δt halves.
+/// The twisted prism by Newmark at Δt = 1, ½, ¼, ⅛, 1/16 ms: no cable pushes at any step,
+/// and the positions and member forces converge as Δt halves.
 ///
 /// Going slack is continuous now (the total force reaches 0 before the cable reaches l0),
 /// a kink the scheme integrates at second order; snapping taut is not: a Kelvin–Voigt
-/// cord's force jumps by β k r there. A step in which a slack cable snaps taut is stopped
-/// where it does (`Newmark::advance`), and the next starts from the acceleration just
-/// after the jump, so the jump falls on a step boundary. Measured, largest differences of
-/// successive runs (ratios):
+/// cord's force jumps by β k r there. A cable slack at a step's start is damped in it at
+/// the rate that carries that jump's impulse (`tsm::SnapRate`), and the next step starts
+/// from the acceleration just after the jump. Measured, largest differences of successive
+/// runs (ratios):
 /// - t = 0.05 s (end of the pulse): positions 2.57e-6, 6.34e-7, 1.58e-7, 3.91e-8 m (4.05,
 ///   4.01, 4.04), forces 1.66, 0.393, 0.107, 0.026 N (4.23, 3.65, 4.08).
-/// - t = 0.2 s, after many snaps: positions 1.61e-5, 3.96e-6, 9.81e-7, 2.47e-7 m (4.05,
-///   4.04, 3.96), forces 5.76, 1.35, 0.361, 0.099 N (4.25, 3.75, 3.65).
+/// - t = 0.2 s, after many snaps: positions 1.59e-5, 3.97e-6, 9.82e-7, 2.46e-7 m (4.01,
+///   4.05, 3.99), forces 5.05, 1.35, 0.356, 0.099 N (3.75, 3.78, 3.59).
 ///
-/// Without the stops (each snapping cable undamped until its step ended) the ratios at
-/// 0.2 s were 2.66, 3.71, 2.11 (positions) and 1.20, 4.85, 0.96 (forces): first order;
-/// before the cables' force was held at zero, −227 N of compression at every Δt.
+/// With each snapping cable undamped until its step ended the ratios at 0.2 s were 2.77,
+/// 3.79, 4.39 (positions) and 0.75, 3.40, 3.87 (forces): first order at the coarse steps;
+/// with steps stopped at each snap (before the snap rate), 4.05, 4.04, 3.96 and 4.25, 3.75,
+/// 3.65; before the cables' force was held at zero, −227 N of compression at every Δt.
 ///
 /// Asserted: every ratio ≥ 3 at both times (second order, 4 per halving, less the
 /// pre-asymptotic scatter measured above; first order would give 2).
 #[test]
 fn a_twisted_prism_s_cables_never_push_and_converge_as_dt_halves() {
+    assert_second_order_through_snaps("newmark", &[0.05, 0.2]);
+}
+
+/// The twisted prism by the energy–momentum scheme, whose snap rate closes the gap the
+/// cable had at the step's start (`tsm::SnapRate`), and whose recorded end forces are
+/// extrapolated from its midpoints' (bounded so that no cable pushes). Measured, largest
+/// differences of successive runs (ratios) at t = 0.2 s, after many snaps: positions
+/// 1.58e-5, 3.99e-6, 9.85e-7, 2.47e-7 m (3.96, 4.05, 3.99), forces 4.06, 1.28, 0.257,
+/// 0.081 N (3.18, 4.96, 3.19); with each snapping cable undamped for its step, 2.71, 3.79,
+/// 4.41 and 0.73, 3.51, 3.81. Asserted as for Newmark: every ratio ≥ 3 at both times.
+#[test]
+fn by_energy_momentum_the_twisted_prism_converges_as_dt_halves() {
+    assert_second_order_through_snaps("energy_momentum", &[0.05, 0.2]);
+}
+
+/// The twisted prism by `scheme` at Δt = 1, ½, ¼, ⅛, 1/16 ms: no cable pushes at any step,
+/// some are slack and some held; every ratio of successive differences of positions and
+/// member forces at `times` is ≥ 3 (second order, 4 per halving, less the pre-asymptotic
+/// scatter measured; first order would give 2).
+fn assert_second_order_through_snaps(scheme: &str, times: &[f64]) {
     let runs: Vec<Log> = [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5]
         .into_iter()
         .map(|dt| {
-            let log = run(&twisted_prism(dt), "twist");
+            let log = run(&twisted_prism(dt, scheme), "twist");
             let (least, slack, held) = cable_census(&log);
-            eprintln!("Δt = {dt}: least cable force {least:e} N, {slack} slack and {held} held cable records");
+            eprintln!("{scheme}, Δt = {dt}: least cable force {least:e} N, {slack} slack and {held} held cable records");
             // The twist makes cables slack and holds shortening ones at zero force.
             assert!(slack > 0 && held > 0, "Δt = {dt}: {slack} slack, {held} held");
             log
         })
         .collect();
-    let ratios = |t: f64| {
+    for &t in times {
         let gaps: Vec<(f64, f64)> = runs.windows(2).map(|w| gap(&w[0], &w[1], t)).collect();
-        eprintln!("t = {t}: differences (positions [m], forces [N]) {gaps:?}");
+        eprintln!("{scheme}, t = {t}: differences (positions [m], forces [N]) {gaps:?}");
         let ratio: Vec<(f64, f64)> = gaps.windows(2).map(|g| (g[0].0 / g[1].0, g[0].1 / g[1].1)).collect();
-        (gaps, ratio)
-    };
-    for t in [0.05, 0.2] {
-        let (_, ratio) = ratios(t);
-        assert!(ratio.iter().all(|&(p, f)| p >= 3.0 && f >= 3.0), "t = {t} s: ratios {ratio:?}");
+        assert!(
+            ratio.iter().all(|&(p, f)| p >= 3.0 && f >= 3.0),
+            "{scheme}, t = {t} s: ratios {ratio:?}"
+        );
     }
 }
 

@@ -7,8 +7,9 @@
 //! 10.1 kN of a 10.2 kN largest strut force whose viscous part is about 115 N in the limit,
 //! while the elastic part is right at every Δt (docs/dt_auto.md). The forces the steps
 //! balanced are smooth, so the end's are extrapolated linearly in time from the last two
-//! midpoints' (second order), the first step's from the stage's start, and the first after a
-//! jump of the damping force (a cable snapping taut, an actuator's kink) is the step's own.
+//! midpoints' (second order), the first step's from the stage's start, and where a member's
+//! damping force jumps (a cable snapping taut: in the step it snaps in and the next; an
+//! actuator's kink) its end force is the step's own.
 
 use super::viscous::Viscous;
 use crate::tsm::{member_damping_all, Assembly, MemberDamping};
@@ -21,8 +22,9 @@ pub(super) struct MidpointEnds {
     solved: Vec<f64>,
     /// The last committed step's (or the stage start's) and its time [s].
     last: (Vec<f64>, f64),
-    /// The damping force jumps at the next step's start: its end is not extrapolated across.
-    restart: bool,
+    /// Per member, its damping force jumps in the step or at its start: its end is not
+    /// extrapolated across.
+    fresh: Vec<bool>,
     /// The members' viscous axial forces at the last converged step's end [N].
     pub(super) end: Vec<f64>,
     /// Node velocities and the end forces on all 3n node directions.
@@ -38,7 +40,7 @@ impl MidpointEnds {
         let mut ends = MidpointEnds {
             solved: vec![0.0; members],
             last: (vec![0.0; members], 0.0),
-            restart: false,
+            fresh: vec![false; members],
             end: vec![0.0; members],
             velocities: vec![Vector3::zeros(); nodes],
             nodal: vec![0.0; 3 * nodes],
@@ -50,31 +52,51 @@ impl MidpointEnds {
         ends
     }
 
-    /// A step converged with `asm` at its midpoint and `v_mid` the velocities there.
+    /// A step converged with `asm` at its midpoint and `v_mid` the velocities there. A
+    /// cable damped at its snap rate ([`Viscous::snapping`]) snapped taut in it if damped.
     pub(super) fn solve(&mut self, asm: &Assembly, viscous: &Viscous, rest_rate: &[f64], v_mid: &[f64]) {
         super::newmark::node_velocities(asm, v_mid, &mut self.velocities);
         viscous.member_axial(asm, rest_rate, &self.velocities, &mut self.solved);
+        for (e, fresh) in self.fresh.iter_mut().enumerate() {
+            *fresh |= self.solved[e] != 0.0 && viscous.snapping(e);
+        }
     }
 
-    /// The damping force jumps at the next step's start (see [`MidpointEnds::restart`]'s field).
+    /// Every member's damping force jumps at the next step's start (see [`MidpointEnds::fresh`]).
     pub(super) fn restart(&mut self) {
-        self.restart = true;
+        self.fresh.fill(true);
     }
 
-    /// The step solved last is committed, its midpoint at `t_mid` and its end at `t_end`:
-    /// its end forces on the line through the last committed value and the step's own.
-    pub(super) fn commit(&mut self, t_mid: f64, t_end: f64) {
-        let slope = if self.restart {
-            0.0
-        } else {
-            (t_end - t_mid) / (t_mid - self.last.1)
-        };
-        for ((e, s), l) in self.end.iter_mut().zip(&self.solved).zip(&self.last.0) {
-            *e = s + slope * (s - l);
+    /// The damping force of `members` jumps at the next step's start.
+    pub(super) fn restart_members(&mut self, members: &[usize]) {
+        for &e in members {
+            self.fresh[e] = true;
+        }
+    }
+
+    /// The step solved last is committed, `asm` at its end, its midpoint at `t_mid` and its
+    /// end at `t_end`: its end forces on the line through the last committed value and the
+    /// step's own. A tension-only member's is then bounded as its law bounds it
+    /// (`tsm::DampingModulus`): none while slack at the end, no less than −N while taut, so
+    /// that the extrapolation never makes a cable push (the twisted prism of
+    /// tests/slack.rs recorded −34 N on a cable of N = 102 N without).
+    pub(super) fn commit(&mut self, asm: &Assembly, t_mid: f64, t_end: f64) {
+        let slope = (t_end - t_mid) / (t_mid - self.last.1);
+        for (((e, s), l), fresh) in self.end.iter_mut().zip(&self.solved).zip(&self.last.0).zip(&self.fresh) {
+            *e = if *fresh { *s } else { s + slope * (s - l) };
+        }
+        let laws = &asm.elements.laws;
+        for (e, end) in self.end.iter_mut().enumerate().filter(|(e, _)| laws[*e].tension_only()) {
+            let s = &asm.states[e];
+            *end = if laws[e].slack(s.length, asm.rest[e]) {
+                0.0
+            } else {
+                end.max(-s.force)
+            };
         }
         std::mem::swap(&mut self.last.0, &mut self.solved);
         self.last.1 = t_mid;
-        self.restart = false;
+        self.fresh.fill(false);
     }
 
     /// The end's damping force on the free DOFs, α M v + the members' end forces.

@@ -2,11 +2,9 @@ use super::actuation::Actuation;
 use super::ledger::{trapezoidal_work, Ledger};
 use super::midpoint_ends::MidpointEnds;
 use super::step_control::{AutoStep, ErrorEstimate};
-use super::viscous::Viscous;
+use super::viscous::{SnapRule, Viscous};
 use super::{Energy, Rayleigh, RestSchedule};
-use crate::solve::{
-    bisect_reaching, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, ScaledSink, SolveError, TangentSink,
-};
+use crate::solve::{bisect, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, ScaledSink, SolveError, TangentSink};
 use crate::tsm::{tangent_sparsity, Assembly, EnergyMomentum};
 use nalgebra::Vector3;
 
@@ -180,14 +178,12 @@ pub enum DampingTangent {
 }
 
 /// The work of step attempts not kept: those whose Newton solve failed, so that the step
-/// was cut in halves, and those that converged past a cable snapping taut and were redone
-/// up to it. No converged report counts it.
+/// was cut in halves, and (`dt: auto`) those taken again shorter. No converged report
+/// counts it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Retried {
     /// Step attempts that failed and were cut.
     pub attempts: usize,
-    /// Steps stopped where a cable snapped taut ([`Newmark::advance`]).
-    pub snaps: usize,
     /// `dt: auto`: steps that converged with an error estimate above the tolerance and
     /// were taken again shorter.
     pub rejected: usize,
@@ -247,38 +243,6 @@ pub struct Newmark<'a> {
     /// The members' viscous forces at step ends with a midpoint scheme and objective
     /// damping ([`MidpointEnds`]).
     midpoint_ends: Option<MidpointEnds>,
-}
-
-/// A step is stopped where a cable snaps taut only beyond this fraction of either of its
-/// ends: nearer its end the member is undamped for at most 2 % of the step; nearer its
-/// start the step is taken again with the member damped from the start. Why not smaller: a
-/// sub-step of θΔt has a residual floor growing as 1/θ² (the inertia term's round-off,
-/// m ε |u|/(β θ²Δt²)), so very short stops end on their predictor, and on a 6 × 6 grid
-/// with > 1000 switches a margin of 1e-6 made the end positions diverge as Δt fell below
-/// 1/16 ms (tests/loads.rs). What is left is an O(Δt) error of at most 2 % of a snap's
-/// impulse; tests/slack.rs measures second order through many snaps.
-const SNAP_MARGIN: f64 = 0.02;
-
-/// A step solved to its end or to a cable snapping taut inside it, not committed.
-struct Reached {
-    report: NewtonReport,
-    /// The converged coordinates.
-    trial: Vec<f64>,
-    /// The fraction of the step taken.
-    fraction: f64,
-    /// The members that snap taut where it stopped, damped from there.
-    snapping: Option<Vec<usize>>,
-}
-
-impl Reached {
-    fn whole(report: NewtonReport, trial: Vec<f64>) -> Self {
-        Reached {
-            report,
-            trial,
-            fraction: 1.0,
-            snapping: None,
-        }
-    }
 }
 
 /// The free velocities `v` on every node of `out` (zero at fixed directions).
@@ -553,9 +517,7 @@ impl<'a> Newmark<'a> {
     }
 
     /// Advances by `dt`, cutting the step in halves (up to `max_cuts` halvings deep) where
-    /// Newton fails, and stopping a step where a tension-only member snaps taut within it
-    /// (the rest of the step is then taken from there: [`Viscous::snap_fraction`]).
-    /// `load(t, f)` writes the external force on the free DOFs at time t.
+    /// Newton fails. `load(t, f)` writes the external force on the free DOFs at time t.
     pub fn advance(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<NewtonReport, SolveError> {
         let merge = |first: NewtonReport, second: NewtonReport| NewtonReport {
             iterations: first.iterations + second.iterations,
@@ -563,11 +525,8 @@ impl<'a> Newmark<'a> {
             residual: second.residual,
         };
         let max_cuts = self.params.max_cuts;
-        let mut step = |from: f64, to: f64| {
-            let (report, done) = self.step(dt * (to - from), load)?;
-            Ok((report, from + done * (to - from)))
-        };
-        bisect_reaching(0.0, 1.0, max_cuts, &mut step, &merge).map(|(report, _)| report)
+        let mut step = |from: f64, to: f64| self.step(dt * (to - from), load);
+        bisect(0.0, 1.0, max_cuts, &mut step, &merge).map(|(report, _)| report)
     }
 
     /// Newmark's velocity at the end of a step of size dt ending at coordinates `u`, into
@@ -617,79 +576,44 @@ impl<'a> Newmark<'a> {
         }
     }
 
-    /// One Newmark step of size dt, or the part of it up to where a slack tension-only
-    /// member snaps taut (beyond [`SNAP_MARGIN`] of either end); returns the report and the
-    /// fraction of dt taken. On failure the state is left as it was.
-    fn step(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<(NewtonReport, f64), SolveError> {
-        let reached = self.solve_to_event(dt, load)?;
-        self.commit(reached.trial, reached.fraction * dt);
-        if let Some(snapping) = reached.snapping {
-            self.viscous.damp_from_next_step(snapping);
-        }
-        Ok((reached.report, reached.fraction))
-    }
-
-    /// Solves the step of size dt, or the part of it up to where a slack tension-only
-    /// member snaps taut, not committed. On failure the state is left as it was.
-    fn solve_to_event(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<Reached, SolveError> {
+    /// One Newmark step of size dt. On failure the state is left as it was.
+    fn step(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<NewtonReport, SolveError> {
         let (report, trial) = self.solve(dt, load)?;
-        let Some((theta, snapping)) = self.viscous.snap_fraction(&self.asm).filter(|s| s.0 < 1.0 - SNAP_MARGIN) else {
-            return Ok(Reached::whole(report, trial));
-        };
-        self.retried.snaps += 1;
-        self.retried.iterations += report.iterations;
-        self.retried.factorizations += report.factorizations;
-        self.abandon(trial);
-        if theta <= SNAP_MARGIN {
-            // At the step's start: the step again, those members damped from its start.
-            self.viscous.damp_from_next_step(snapping);
-            let (report, trial) = self.solve(dt, load)?;
-            return Ok(Reached::whole(report, trial));
-        }
-        let (report, trial) = self.solve(theta * dt, load)?;
-        Ok(Reached {
-            report,
-            trial,
-            fraction: theta,
-            snapping: Some(snapping),
-        })
+        self.commit(trial, dt);
+        Ok(report)
     }
 
     /// One step of `dt: auto` of at most `dt` [s]: kept where its local error estimate
-    /// ([`super::step_control`]) is within the tolerance, else taken again shorter; also
-    /// shortened where a cable snaps taut inside it, and halved where Newton fails. Returns
+    /// ([`super::step_control`]) is within the tolerance, else taken again shorter, and
+    /// halved where Newton fails. Returns
     /// the report of the step kept, its size, and the size the next step should try.
     pub fn advance_auto(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<(NewtonReport, f64, f64), SolveError> {
         let auto = self.estimate.as_ref().expect("dt: auto sets up an estimate").settings;
         let mut dt = dt;
         loop {
-            let reached = match self.solve_to_event(dt, load) {
-                Ok(reached) => reached,
+            let (report, trial) = match self.solve(dt, load) {
+                Ok(solved) => solved,
                 Err(_) if dt > auto.min => {
                     dt = (0.5 * dt).max(auto.min);
                     continue;
                 }
                 Err(e) => return Err(e),
             };
-            let taken = reached.fraction * dt;
-            let ratio = self.error_ratio(&reached.trial, taken);
-            if ratio > 1.0 && taken > auto.min {
+            let ratio = self.error_ratio(&trial, dt);
+            if ratio > 1.0 && dt > auto.min {
                 self.retried.rejected += 1;
-                self.retried.iterations += reached.report.iterations;
-                self.retried.factorizations += reached.report.factorizations;
-                self.abandon(reached.trial);
-                dt = auto.next(taken, ratio);
+                self.retried.iterations += report.iterations;
+                self.retried.factorizations += report.factorizations;
+                self.abandon(trial);
+                dt = auto.next(dt, ratio);
                 continue;
             }
             self.retried.over_tolerance += usize::from(ratio > 1.0);
-            self.commit(reached.trial, taken);
-            if let Some(snapping) = reached.snapping {
-                self.viscous.damp_from_next_step(snapping);
-                self.restart_estimate(false);
-            } else if let Some(e) = &mut self.estimate {
+            self.commit(trial, dt);
+            if let Some(e) = &mut self.estimate {
                 e.accept(self.time);
             }
-            return Ok((reached.report, taken, auto.next(taken, ratio)));
+            return Ok((report, dt, auto.next(dt, ratio)));
         }
     }
 
@@ -702,6 +626,13 @@ impl<'a> Newmark<'a> {
         // a_{n+1} − a_n spans the step; the midpoint rule's a_{n+½} − a_n half of it.
         let c_positions = c / self.params.equation_at();
         let positions = e.position_ratio((beta, c_positions), dt, (trial, &self.next.base, &self.a), self.asm.dofs);
+        if self.viscous.snapped(&self.asm) {
+            // A cable's damping force jumped inside the step (it carries the jump's impulse:
+            // `tsm::SnapRate`), which no polynomial through the steps' forces follows: the
+            // step is judged by its positions, and the force history restarts after it
+            // (the next step starts from the jump).
+            return positions;
+        }
         let rest_rate = self.actuation.as_ref().map_or(&[][..], |a| &a.rate);
         total_forces(&self.asm, &self.viscous, rest_rate, (&self.next.v, gamma / (beta * dt)), e);
         positions.max(e.force_ratio(c, self.time + dt))
@@ -746,11 +677,18 @@ impl<'a> Newmark<'a> {
     /// Solves the step of size dt to its converged coordinates, not committed; on failure
     /// the state is left as it was.
     fn solve(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<(NewtonReport, Vec<f64>), SolveError> {
-        if self.viscous.start_step(&self.asm) {
-            // A cable damped from here on: the damping force jumps at this step's start, and
-            // the step starts from the acceleration just after (as at an actuator's kink).
+        let gamma = self.params.kinematics().1;
+        let snap = if self.params.scheme.at_midpoint() {
+            SnapRule::AtMidpoint { dt }
+        } else {
+            SnapRule::AtEnd { gamma_dt: gamma * dt }
+        };
+        if self.viscous.start_step(&self.asm, snap) {
+            // A cable that snapped taut in the last step, damped on its taut branch from here
+            // on: the damping force jumps at this step's start, and the step starts from the
+            // acceleration just after (as at an actuator's kink).
             if let Some(ends) = &mut self.midpoint_ends {
-                ends.restart();
+                ends.restart_members(self.viscous.newly_taut());
             }
             self.consistent_acceleration();
             self.restart_estimate(false);
@@ -831,10 +769,9 @@ impl<'a> Newmark<'a> {
         std::mem::swap(&mut self.fd, &mut self.next.fd);
         self.next.trial = trial;
         self.time += dt;
-        self.viscous.step_committed();
         let actuation = self.actuation.as_mut().map_or(0.0, |a| a.commit(&self.asm));
         if let Some(ends) = &mut self.midpoint_ends {
-            ends.commit(self.time - 0.5 * dt, self.time);
+            ends.commit(&self.asm, self.time - 0.5 * dt, self.time);
         }
         if self.params.scheme.at_midpoint() {
             // The acceleration and damping force at the step's end, where the midpoint rule
@@ -1180,6 +1117,70 @@ mod tests {
         }
     }
 
+    /// The step Jacobian where cables slack at the step's start snap taut in it, damped at
+    /// their snap rate ([`crate::tsm::SnapRate`]): the prism's tension-only rubber at
+    /// stretch 0.999 (slack by ~1 mm), so that at the trial point some of those are taut
+    /// (force β k R, R > 0) and some still slack (R ≤ 0, no force), for Newmark
+    /// (R = (l − l0)/(γΔt)), the midpoint rule and the energy–momentum form
+    /// (R = r + (l_n − l0_n)/Δt), exact and symmetrized, against central differences as in
+    /// [`step_jacobian_matches_finite_differences`]. Each member must be away from its
+    /// switch R = 0 by more than the step h = 1e-6 m moves R (h/Δt = 1e-4 m/s; 1e-3 m/s
+    /// asserted).
+    #[test]
+    fn step_jacobian_of_snapping_members_matches_finite_differences() {
+        let mut cable = OgdenCord::new(OgdenCord::paper_terms(), 50e-6, 1.0, 0.1);
+        cable.tension_only = true;
+        for (scheme, symmetric_below) in [
+            (Scheme::Newmark, 0.0),
+            (Scheme::Newmark, f64::INFINITY),
+            (Scheme::Midpoint, 0.0),
+            (Scheme::EnergyMomentum, 0.0),
+        ] {
+            prism_in_motion(DampingTangent::Objective, false, (cable.clone(), 0.999), |nm| {
+                nm.params.scheme = scheme;
+                if scheme == Scheme::EnergyMomentum {
+                    nm.energy_momentum = Some(EnergyMomentum::new(&nm.asm));
+                    nm.energy_momentum.as_mut().unwrap().start_step(&nm.asm);
+                }
+                let snap = match scheme {
+                    Scheme::Newmark => SnapRule::AtEnd { gamma_dt: 0.5 * 0.01 },
+                    _ => SnapRule::AtMidpoint { dt: 0.01 },
+                };
+                nm.viscous.start_step(&nm.asm, snap);
+                nm.predict(0.01, &|_, f| f.fill(0.0));
+                let u = off_predictor(nm);
+                StepProblem { nm, dt: 0.01 }.residual(&u, &mut vec![0.0; u.len()]);
+                let (taut, slack) = snapping_members(nm);
+                assert!(taut >= 1 && slack >= 1, "{scheme:?}: snapping taut {taut}, still slack {slack}");
+                assert_step_jacobian(nm, DampingTangent::Objective, symmetric_below);
+            });
+        }
+    }
+
+    /// At `nm`'s current iterate, how many members damped at their snap rate have R > 0
+    /// and R ≤ 0, asserting that each is at least 1e-3 m/s away from R = 0.
+    fn snapping_members(nm: &Newmark) -> (usize, usize) {
+        let asm = &nm.asm;
+        let midpoint = nm.params.scheme.at_midpoint();
+        let v = if midpoint { &nm.next.v_mid } else { &nm.next.v };
+        let mut velocities = vec![Vector3::zeros(); asm.model.node_count()];
+        node_velocities(asm, v, &mut velocities);
+        let mut counts = (0, 0);
+        for (e, m) in moduli(nm).iter().enumerate() {
+            let Some(snap) = m.snap else { continue };
+            let [a, b] = asm.model.members[e].nodes;
+            let s = &asm.states[e];
+            let rate = snap.per_length * s.length + snap.per_rate * s.dir.dot(&(velocities[b] - velocities[a])) + snap.constant;
+            assert!(rate.abs() > 1e-3, "member {e} at its switch: R = {rate:e} m/s");
+            if rate > 0.0 {
+                counts.0 += 1;
+            } else {
+                counts.1 += 1;
+            }
+        }
+        counts
+    }
+
     /// At `nm`'s current iterate, how many tension-only members are held at −N, damped by
     /// β k r and slack, asserting that each is at least 1e-3 N away from its switch.
     fn held_members(nm: &Newmark) -> (usize, usize, usize) {
@@ -1402,24 +1403,40 @@ mod tests {
         assert!(coarse / fine > 3.0, "position differences {coarse:e}, {fine:e}");
     }
 
-    /// The cable reaches l0 three quarters into the step: the step is stopped there (the
-    /// slack motion is uniform, so the stop lands on l0 up to how far the undamped whole
-    /// step's end bends the linear interpolation) and the rest of it taken with the cable
-    /// damped, from the acceleration just after its damping force's jump.
+    /// The cable reaches l0 three quarters into the step: the step is taken whole, the
+    /// cable damped at its snap rate R = (l − l0)/(γΔt) (`tsm::SnapRate`), so the step's
+    /// end solves m c_a (u − base) = −k (u − l0)(1 + β_R/(γΔt)) in closed form.
     #[test]
-    fn a_step_in_which_a_cable_snaps_taut_stops_there() {
-        snapping_cable(DampingTangent::Objective, 0, |mut nm, (ea, _, dt, v0, s)| {
+    fn a_step_in_which_a_cable_snaps_taut_carries_its_impulse() {
+        snapping_cable(DampingTangent::Objective, 0, |mut nm, (ea, m, dt, v0, s)| {
             assert_eq!(nm.a, [0.0], "slack at the start: no force");
             nm.advance(dt, &|_, _| ()).expect("the step converges uncut");
-            assert_eq!(nm.retried.snaps, 1, "{:?}", nm.retried);
-            assert_eq!(nm.retried.attempts, 0, "{:?}", nm.retried);
+            assert_eq!(nm.retried, Retried::default());
             assert!((nm.time - dt).abs() < 1e-15, "the whole step is taken: t = {}", nm.time);
-            assert!(nm.u[0] > 1.0 && moduli(&nm)[0].stiffness == ea, "{:?}", moduli(&nm)[0]);
-            // Damped from the stop on: the end velocity is below the undamped step's.
-            let (c_a, k, m) = (4.0 / (dt * dt), ea, 1.0);
+            let (c_a, beta_r) = (4.0 / (dt * dt), nm.viscous.rayleigh.beta);
             let base = 1.0 - s + v0 * dt;
-            let undamped = (m * c_a * base + k) / (m * c_a + k);
-            assert!(nm.u[0] < undamped, "x = {}, the undamped step's {undamped}", nm.u[0]);
+            let k = ea * (1.0 + beta_r / (0.5 * dt));
+            let closed = (m * c_a * base + k) / (m * c_a + k);
+            // The step's residual tolerance on a force of k (u − 1) ~ 1e2 N: 1e-12 m.
+            assert!((nm.u[0] - closed).abs() < 1e-12, "x = {}, closed form {closed}", nm.u[0]);
+            assert!(
+                nm.u[0] > 1.0 && moduli(&nm)[0].snap.is_some(),
+                "x = {}, {:?}",
+                nm.u[0],
+                moduli(&nm)[0]
+            );
+        });
+    }
+
+    /// A cable that stays slack through the step gets no force from its snap rate: the
+    /// step ends on its predictor, uniform motion.
+    #[test]
+    fn a_cable_that_stays_slack_is_not_damped() {
+        snapping_cable(DampingTangent::Objective, 0, |mut nm, (_, _, dt, v0, s)| {
+            nm.v[0] = -v0;
+            nm.advance(dt, &|_, _| ()).expect("the step converges");
+            let uniform = 1.0 - s - v0 * dt;
+            assert!((nm.u[0] - uniform).abs() < 1e-15, "x = {}, uniform motion {uniform}", nm.u[0]);
         });
     }
 

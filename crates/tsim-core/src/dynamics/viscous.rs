@@ -5,7 +5,7 @@ use super::{DampingTangent, Rayleigh};
 use crate::solve::{TangentSink, REUSE_CONTRACTION};
 use crate::tsm::{
     assemble_tangents, block_product, damping_moduli, member_axial_damping, member_damping_all, scaled_blocks, taut_members, Assembly,
-    DampingModulus, EndSlots, MemberDamping, MemberState, ObjectiveDamping,
+    DampingModulus, EndSlots, MemberDamping, MemberState, ObjectiveDamping, SnapRate,
 };
 use nalgebra::{Matrix3, Vector3};
 
@@ -21,11 +21,6 @@ use nalgebra::{Matrix3, Vector3};
 /// (Measured gains: bench/pipeline.md.)
 pub(super) const SYMMETRIC_CONTRACTION: f64 = REUSE_CONTRACTION;
 
-/// Members whose snapping taut falls within this fraction of a step of the first are taken
-/// as snapping with it: the step stops once for all of them (within 1e-6 of a step, the
-/// time each is undamped too long, or damped too early, is immaterial).
-const SNAP_TOGETHER: f64 = 1e-6;
-
 /// Rayleigh damping C v = α M v + (the β term) of one stage.
 pub(super) struct Viscous {
     pub(super) rayleigh: Rayleigh,
@@ -38,21 +33,48 @@ pub(super) enum StiffnessTerm {
     Tangent(TangentTerm),
 }
 
+/// How a step's equation damps a member snapping taut within it ([`SnapRate`]), by the
+/// scheme: where its equation holds and how its velocity update weighs it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum SnapRule {
+    /// Newmark, the equation at the step's end weighed by γ: R = (l − l0)/(γΔt).
+    AtEnd { gamma_dt: f64 },
+    /// A midpoint scheme: R = r + (l_n − l0_n)/Δt.
+    AtMidpoint { dt: f64 },
+}
+
+impl SnapRule {
+    /// The rate of a member of rest length `rest` (at the equation's time) whose l − l0 was
+    /// `start_gap` at the step's start.
+    fn rate(self, rest: f64, start_gap: f64) -> SnapRate {
+        match self {
+            SnapRule::AtEnd { gamma_dt } => SnapRate {
+                per_length: 1.0 / gamma_dt,
+                per_rate: 0.0,
+                constant: -rest / gamma_dt,
+            },
+            SnapRule::AtMidpoint { dt } => SnapRate {
+                per_length: 0.0,
+                per_rate: 1.0,
+                constant: start_gap / dt,
+            },
+        }
+    }
+}
+
 /// β (dN/dl) r e per member, r its elastic extension rate ([`ObjectiveDamping`]).
 pub(super) struct Objective {
-    /// Per member, whether it was taut at the step's start (a member slack then is
-    /// undamped for the step), and its damping modulus at the current states
-    /// ([`DampingModulus`]).
+    /// Per member, whether it was taut at the step's start (a tension-only member slack
+    /// then is damped at its [`SnapRate`] in the step), and its damping modulus at the
+    /// current states ([`DampingModulus`]).
     taut: Vec<bool>,
-    /// The flags of the step before, to see which members start to be damped.
+    /// The flags of the step before, to see which members start to be damped, and those.
     was_taut: Vec<bool>,
-    /// Per member, l − l0 at the step's start [m] (negative where slack): where a slack
-    /// member snaps taut within the step ([`Viscous::snap_fraction`]).
+    newly_taut: Vec<usize>,
+    /// Per member, l − l0 at the step's start [m] (negative where slack).
     start_gap: Vec<f64>,
-    /// Members a step stopped at as they snapped taut, damped from the next step's start
-    /// ([`Viscous::damp_from_next_step`]), and those of the current step.
-    damp_next: Vec<usize>,
-    snapping: Vec<usize>,
+    /// The step's [`SnapRule`]; `None` until a step starts.
+    snap: Option<SnapRule>,
     pub(super) moduli: Vec<DampingModulus>,
     /// Whether the step matrix last assembled is the Jacobian's symmetric part, the
     /// largest estimated contraction for which it may be ([`SYMMETRIC_CONTRACTION`]), and
@@ -82,9 +104,9 @@ impl Viscous {
             DampingTangent::Objective => StiffnessTerm::Objective(Objective {
                 taut: vec![true; members],
                 was_taut: vec![true; members],
+                newly_taut: Vec::new(),
                 start_gap: vec![0.0; members],
-                damp_next: Vec::new(),
-                snapping: Vec::new(),
+                snap: None,
                 moduli: vec![DampingModulus::default(); members],
                 symmetric_step: false,
                 symmetric_below: SYMMETRIC_CONTRACTION,
@@ -111,16 +133,20 @@ impl Viscous {
         viscous
     }
 
-    /// At the start of a step, `asm` at the last converged state: `LastConverged` takes its
-    /// K_T, objective damping notes which members are slack (undamped for the step). Taken
-    /// here, not at the end of the previous step, so that between steps the term is still
-    /// the one the last converged equation used ([`Self::member_force`]). Whether some
-    /// member is damped now that the last equation left undamped (a cable that snapped
-    /// taut): the damping force jumps at the step's start, and the step should start from
-    /// the acceleration just after the jump.
-    pub(super) fn start_step(&mut self, asm: &Assembly) -> bool {
+    /// At the start of a step, `asm` at the last converged state, the step's equation
+    /// damping a member snapping taut within it by `snap`: `LastConverged` takes its K_T,
+    /// objective damping notes which members are slack (damped at their [`SnapRate`] for
+    /// the step). Taken here, not at the end of the previous step, so that between steps the
+    /// term is still the one the last converged equation used ([`Self::member_force`]).
+    /// Whether some member is damped on its taut branch now that the last equation damped
+    /// at its snap rate ([`Self::newly_taut`]): the damping force jumps at the step's start,
+    /// and the step should start from the acceleration just after the jump.
+    pub(super) fn start_step(&mut self, asm: &Assembly, snap: SnapRule) -> bool {
         match &mut self.term {
-            StiffnessTerm::Objective(o) => o.keep_taut(asm) && self.rayleigh.beta != 0.0,
+            StiffnessTerm::Objective(o) => {
+                o.snap = Some(snap);
+                o.keep_taut(asm) && self.rayleigh.beta != 0.0
+            }
             StiffnessTerm::Tangent(t) if t.which == DampingTangent::LastConverged => {
                 t.states.copy_from_slice(&asm.states);
                 t.form_blocks(self.rayleigh.beta, asm);
@@ -130,48 +156,24 @@ impl Viscous {
         }
     }
 
-    /// Damps `members` from the next step's start on its taut branch, though a round-off may
-    /// leave them short of l0 there: the members a step was stopped at as they snapped taut.
-    pub(super) fn damp_from_next_step(&mut self, members: Vec<usize>) {
-        if let StiffnessTerm::Objective(o) = &mut self.term {
-            o.damp_next = members;
+    /// The members [`Self::start_step`] found taut that were slack at the step before's.
+    pub(super) fn newly_taut(&self) -> &[usize] {
+        match &self.term {
+            StiffnessTerm::Objective(o) => &o.newly_taut,
+            StiffnessTerm::Tangent(_) => &[],
         }
     }
 
-    /// A step has been committed: the members a stopped step handed on were damped in it.
-    pub(super) fn step_committed(&mut self) {
-        if let StiffnessTerm::Objective(o) = &mut self.term {
-            o.damp_next.clear();
-        }
+    /// Whether member `e` is damped at its [`SnapRate`] in the step (slack at its start).
+    pub(super) fn snapping(&self, e: usize) -> bool {
+        matches!(&self.term, StiffnessTerm::Objective(o) if o.moduli[e].snap.is_some())
     }
 
-    /// Where in the step just solved, to `asm`'s state, the first tension-only member slack
-    /// at its start snaps taut, as a fraction of the step (l − l0 interpolated linearly in
-    /// time); `None` where none does, or where the β term does not see it (the paper's
-    /// variants, β = 0).
-    ///
-    /// Why: such a member is undamped for the whole step ([`DampingModulus`]), while a
-    /// Kelvin–Voigt cord's damping force jumps from 0 to β k r as it reaches l0. Over a fixed
-    /// step that is an O(Δt) error in the velocity at each event, and the scheme is first
-    /// order once cables snap taut (tests/slack.rs measured it). Stopping the step at the
-    /// event puts the jump on a step boundary; the crossing's time is then off by the linear
-    /// interpolation's O(Δt²), and second order is kept.
-    /// With the fraction, the members that snap there (within [`SNAP_TOGETHER`] of it).
-    pub(super) fn snap_fraction(&self, asm: &Assembly) -> Option<(f64, Vec<usize>)> {
-        let StiffnessTerm::Objective(o) = &self.term else { return None };
-        if self.rayleigh.beta == 0.0 {
-            return None;
-        }
+    /// Whether some member slack at the step's start is taut at `asm`'s state (the step's
+    /// end): its damping force jumped inside the step.
+    pub(super) fn snapped(&self, asm: &Assembly) -> bool {
         let laws = &asm.elements.laws;
-        let snaps: Vec<(usize, f64)> = (0..o.taut.len())
-            .filter(|&e| !o.taut[e] && laws[e].tension_only() && !laws[e].slack(asm.states[e].length, asm.rest[e]))
-            .map(|e| {
-                let (before, after) = (o.start_gap[e], asm.states[e].length - asm.rest[e]);
-                (e, before / (before - after))
-            })
-            .collect();
-        let first = snaps.iter().map(|s| s.1).min_by(f64::total_cmp)?;
-        Some((first, snaps.iter().filter(|s| s.1 <= first + SNAP_TOGETHER).map(|s| s.0).collect()))
+        (0..asm.states.len()).any(|e| self.snapping(e) && !laws[e].slack(asm.states[e].length, asm.rest[e]))
     }
 
     /// At a new iterate of `asm`: `Current` re-forms its blocks, objective damping its moduli.
@@ -272,34 +274,41 @@ impl Viscous {
 }
 
 impl Objective {
-    /// Notes which members are taut at the current states, the ones damped until the next
-    /// call, at the start of a step ([`DampingModulus`]), with those a stopped step handed
-    /// on; whether one is damped that was not at the last call.
+    /// Notes which members are taut at the current states, at the start of a step
+    /// ([`DampingModulus`]); whether one is that was not at the last call.
     fn keep_taut(&mut self, asm: &Assembly) -> bool {
         self.was_taut.copy_from_slice(&self.taut);
         taut_members(&asm.elements.laws, &asm.rest, &asm.states, &mut self.taut);
-        // Copied, not taken: a step tried again from the same start damps them too.
-        self.snapping.clone_from(&self.damp_next);
-        for &e in &self.snapping {
-            self.taut[e] = true;
-        }
         for ((gap, s), l0) in self.start_gap.iter_mut().zip(&asm.states).zip(&asm.rest) {
             *gap = s.length - l0;
         }
         self.update_moduli(asm);
-        self.taut.iter().zip(&self.was_taut).any(|(&now, &before)| now && !before)
+        self.newly_taut.clear();
+        let newly = (self.taut.iter().zip(&self.was_taut).enumerate()).filter(|(_, (&now, &before))| now && !before);
+        self.newly_taut.extend(newly.map(|(e, _)| e));
+        !self.newly_taut.is_empty()
     }
 
-    /// The members' damping moduli at the current states; a member snapping taut at the
-    /// step's start a round-off short of l0 is damped on its taut branch, at l0.
+    /// The members' damping moduli at the current states; a tension-only member slack at
+    /// the step's start is damped at its [`SnapRate`] with its taut branch's modulus (at
+    /// l0 while it is still slack).
     fn update_moduli(&mut self, asm: &Assembly) {
-        damping_moduli(&asm.elements.laws, &asm.rest, &asm.states, &self.taut, &mut self.moduli);
-        for &e in &self.snapping {
-            let (law, l0) = (&asm.elements.laws[e], asm.rest[e]);
-            if law.slack(asm.states[e].length, l0) {
-                let taut = law.eval(l0, l0);
-                (self.moduli[e].stiffness, self.moduli[e].curvature) = (taut.stiffness, taut.curvature);
-            }
+        let laws = &asm.elements.laws;
+        damping_moduli(laws, &asm.rest, &asm.states, &self.taut, &mut self.moduli);
+        let Some(snap) = self.snap else { return };
+        for e in (0..self.taut.len()).filter(|&e| !self.taut[e] && laws[e].tension_only()) {
+            let (law, l0, s) = (&laws[e], asm.rest[e], &asm.states[e]);
+            let (stiffness, curvature) = if law.slack(s.length, l0) {
+                (law.eval(l0, l0).stiffness, 0.0)
+            } else {
+                (s.stiffness, s.curvature)
+            };
+            self.moduli[e] = DampingModulus {
+                stiffness,
+                curvature,
+                snap: Some(snap.rate(l0, self.start_gap[e])),
+                ..self.moduli[e]
+            };
         }
     }
 

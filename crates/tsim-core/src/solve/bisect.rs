@@ -18,52 +18,34 @@ pub fn bisect<R, E>(
     step: &mut dyn FnMut(f64, f64) -> Result<R, E>,
     merge: &dyn Fn(R, R) -> R,
 ) -> Result<(R, bool), E> {
-    bisect_reaching(from, to, max_cuts, &mut |a, b| step(a, b).map(|r| (r, b)), merge)
-}
-
-/// [`bisect`] with steps that may stop early: `step(a, b)` returns its report and the point
-/// it reached, b or one in (a, b) where it met an event (a cable snapping taut inside a time
-/// step: [`crate::dynamics::Newmark`] stops there, so that the damping force's jump falls
-/// on a step boundary). The rest, from there to b, is taken next as a sub-step of its own
-/// with the halvings b had left.
-pub fn bisect_reaching<R, E>(
-    from: f64,
-    to: f64,
-    max_cuts: u32,
-    step: &mut dyn FnMut(f64, f64) -> Result<(R, f64), E>,
-    merge: &dyn Fn(R, R) -> R,
-) -> Result<(R, bool), E> {
-    // The whole step first, outside the stack: the common case allocates nothing.
-    let (mut pending, mut merged, mut cut) = match step(from, to) {
-        Ok((r, reached)) if reached >= to => return Ok((r, false)),
-        Ok((r, reached)) => (vec![(reached, to, max_cuts)], Some(r), false),
+    // The common case, a step that converges whole, allocates nothing (a time step must
+    // not: tests/allocation.rs).
+    let first = match step(from, to) {
+        Ok(r) => return Ok((r, false)),
         Err(e) if max_cuts == 0 => return Err(e),
-        Err(_) => {
-            let mid = 0.5 * (from + to);
-            (vec![(mid, to, max_cuts - 1), (from, mid, max_cuts - 1)], None, true)
-        }
+        Err(_) => 0.5 * (from + to),
     };
+    // Sub-intervals still to take, the next one last, each with the halvings it has left.
+    let mut pending = vec![(first, to, max_cuts - 1), (from, first, max_cuts - 1)];
+    let mut merged: Option<R> = None;
     while let Some((a, b, cuts)) = pending.pop() {
         match step(a, b) {
-            Ok((r, reached)) => {
+            Ok(r) => {
                 merged = Some(match merged.take() {
                     Some(m) => merge(m, r),
                     None => r,
-                });
-                if reached < b {
-                    pending.push((reached, b, cuts));
-                }
+                })
             }
             Err(e) if cuts == 0 => return Err(e),
             Err(_) => {
-                cut = true;
                 let mid = 0.5 * (a + b);
                 pending.push((mid, b, cuts - 1));
                 pending.push((a, mid, cuts - 1));
             }
         }
     }
-    Ok((merged.expect("a sub-step succeeded"), cut))
+    // The stack empties only after a sub-step succeeded: the last one taken.
+    Ok((merged.expect("a sub-step succeeded"), true))
 }
 
 #[cfg(test)]
@@ -99,24 +81,6 @@ mod tests {
     /// `depth + 1` sub-steps tiling [0, 1] in order. At 40 cuts (more than validation
     /// allows) and at 1000 (near the last halving an f64 interval at 0 has), on a thread
     /// with a 64 KiB stack: the depth costs no call stack.
-    /// A step that stops early at an event: the rest is taken next with the halvings its
-    /// interval had left, and failures still split.
-    #[test]
-    fn a_step_stopped_early_goes_on_from_where_it_stopped() {
-        let mut taken = Vec::new();
-        let mut step = |a: f64, b: f64| {
-            if b - a > 0.6 {
-                return Err(());
-            }
-            let reached = if a < 0.3 && b > 0.3 { 0.3 } else { b };
-            taken.push((a, reached));
-            Ok((1, reached))
-        };
-        let (count, cut) = super::bisect_reaching(0.0, 1.0, 1, &mut step, &|x, y| x + y).unwrap();
-        assert_eq!((count, cut), (3, true));
-        assert_eq!(taken, vec![(0.0, 0.3), (0.3, 0.5), (0.5, 1.0)]);
-    }
-
     #[test]
     fn deep_cuts_take_no_call_stack() {
         for depth in [40_u32, 1000] {

@@ -11,7 +11,7 @@ mod newton;
 pub mod ordering;
 pub mod small_solve;
 
-pub use bisect::{bisect, bisect_reaching};
+pub use bisect::bisect;
 pub use dense_eigen::symmetric_eigen;
 pub use eigen::{krylov_dimension, partial_eigen, Diagonal, EigenError, EigenPairs, Shift};
 pub use linear::{DenseSolver, LinearError, ScaledSink, SparseSolver, Sparsity, TangentSink, TangentSolver};

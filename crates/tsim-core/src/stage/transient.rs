@@ -181,10 +181,6 @@ pub struct TransientSummary {
     /// and `factorizations` (the converged sub-steps') leave out.
     #[serde(default)]
     pub cut_steps: usize,
-    /// Steps stopped where a tension-only member snapped taut within them, each solved
-    /// again up to the snap (that work is in `failed_iterations`, `failed_factorizations`).
-    #[serde(default)]
-    pub snap_stops: usize,
     /// Newton iterations of the failed attempts.
     #[serde(default)]
     pub failed_iterations: usize,
@@ -612,7 +608,6 @@ impl<'s, 'r> Stepping<'s, 'r> {
         summary.final_kinetic = nm.energy().kinetic;
         (summary.failed_iterations, summary.failed_factorizations) = (nm.retried.iterations, nm.retried.factorizations);
         (summary.rejected_steps, summary.over_tolerance_steps) = (nm.retried.rejected, nm.retried.over_tolerance);
-        summary.snap_stops = nm.retried.snaps;
         summary.settle_time = self.settle.since;
         summary
     }

@@ -23,19 +23,54 @@ use std::sync::Arc;
 ///
 /// Snapping taut is the other way round: a Kelvin–Voigt cord's force jumps from 0 to
 /// β k r > 0 as it reaches l0 stretching, and a step residual with that jump may have no
-/// root near it. A member slack at a step's start is therefore undamped until the step
-/// ends (`taut`: false), and the Newmark step is stopped where it snaps taut, the next
-/// starting with it damped from the acceleration just after the jump
-/// (`dynamics::Newmark::advance`): the jump falls on a step boundary and second order is
-/// kept (tests/slack.rs).
+/// root near it, while leaving the member undamped for the step in which it snaps loses
+/// the jump's impulse, an O(Δt) velocity error per snap (first order). A member slack at a
+/// step's start is therefore damped within the step at the rate of its [`SnapRate`]: the
+/// one whose impulse over the step is the cord's exact β k (l − l0) at the step's end, zero
+/// while it stays slack and rising continuously from zero as it snaps. No event is located
+/// and no step stopped; the next step starts from the damping force and acceleration just
+/// after the jump (`dynamics::Newmark`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DampingModulus {
-    /// dN/dl [N/m]; zero for a member slack now or at the step's start.
+    /// dN/dl [N/m]; zero for a member slack now, unless it was at the step's start too
+    /// (`snap`).
     pub stiffness: f64,
     /// d²N/dl² [N/m²].
     pub curvature: f64,
     /// The member cannot push: its damping force is held at no less than −N.
     pub tension_only: bool,
+    /// Slack at the step's start: damped at this rate instead of r (`stiffness` is then its
+    /// taut branch's, at l0 where it is slack now).
+    pub snap: Option<SnapRate>,
+}
+
+/// The rate R a member slack at a step's start is damped at, β k max(0, R) along it: an
+/// affine function R = a l + b r + c of its length l and elastic extension rate r at the
+/// state the step's equation holds at, chosen so that Δt times the force the step's
+/// velocity update weighs it with is the cord's impulse
+/// β k (l − l0) over the part of the step it is taut in: the whole impulse of the jump,
+/// with no need to find where in the step it falls.
+/// - Newmark (equation at the step's end, velocity update weighing it by γ):
+///   R = (l − l0)/(γΔt), zero as the member reaches l0.
+/// - Midpoint schemes (equation at the midpoint, weighing it by 1): R = r + (l_n − l0_n)/Δt,
+///   the gap at the step's start closed first: Δt R = l_{n+1} − l0_{n+1} to the step's
+///   O(Δt³), zero where the member ends the step at its rest length.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SnapRate {
+    /// a [1/s per m of length].
+    pub per_length: f64,
+    /// b [1].
+    pub per_rate: f64,
+    /// c [m/s].
+    pub constant: f64,
+}
+
+impl SnapRate {
+    /// R at length `length` and elastic extension rate `rate`.
+    #[inline(always)]
+    fn at(&self, length: f64, rate: f64) -> f64 {
+        self.per_length * length + self.per_rate * rate + self.constant
+    }
 }
 
 /// Which members are on their taut branch (not slack) at `states`: the members a step
@@ -47,7 +82,7 @@ pub fn taut_members(laws: &[Arc<dyn ForceLaw>], rest: &[f64], states: &[MemberSt
 }
 
 /// Each member's damping modulus at `states`: zero where it is slack now or was at the
-/// step's start (`taut` false).
+/// step's start (`taut` false; the caller gives the latter their [`SnapRate`]).
 pub fn damping_moduli(laws: &[Arc<dyn ForceLaw>], rest: &[f64], states: &[MemberState], taut: &[bool], moduli: &mut [DampingModulus]) {
     for (e, (m, s)) in moduli.iter_mut().zip(states).enumerate() {
         let law = &laws[e];
@@ -56,6 +91,7 @@ pub fn damping_moduli(laws: &[Arc<dyn ForceLaw>], rest: &[f64], states: &[Member
             stiffness: if damped { s.stiffness } else { 0.0 },
             curvature: if damped { s.curvature } else { 0.0 },
             tension_only: law.tension_only(),
+            snap: None,
         };
     }
 }
@@ -85,8 +121,11 @@ fn scatter(dofs: &DofMap, [a, b]: [usize; 2], f: &Vector3<f64>, out: &mut [f64])
 /// ends is stretched at the rate l l̇0/l0). A rigid motion (v_b − v_a = ω × d) of members
 /// of constant rest length has r = 0 and gets no force; the power dissipated, β k r², is
 /// never negative. A tension-only member's force is held at −N where its total would push
-/// ([`DampingModulus`]). For small motions about a state it is β K_0 v: K_T's geometric
-/// part is left out, which is what makes it objective.
+/// ([`DampingModulus`]); one slack at the step's start is damped at its [`SnapRate`] R,
+/// positive only where it lengthens through l0 in the step (a rigid motion leaves it
+/// slack and undamped), so that it too dissipates over the step. For small motions about
+/// a state it is β K_0 v: K_T's geometric part is left out, which is what makes it
+/// objective.
 pub struct ObjectiveDamping<'a> {
     /// Topology: each member's end nodes.
     pub model: &'a Model,
@@ -94,7 +133,7 @@ pub struct ObjectiveDamping<'a> {
     pub dofs: &'a DofMap,
     /// Each member at the state (length, unit vector e).
     pub states: &'a [MemberState],
-    /// Each member's modulus k = dN/dl [N/m] (zero where slack now or at the step's start).
+    /// Each member's modulus k = dN/dl [N/m] and snap rate ([`DampingModulus`]).
     pub moduli: &'a [DampingModulus],
     /// Velocities of the free DOFs [m/s].
     pub v: &'a [f64],
@@ -113,9 +152,12 @@ fn elastic_rate(s: &MemberState, w: &Vector3<f64>, rest_rate: &[f64], e: usize) 
 
 /// A member's axial damping force β k r at elastic extension rate `rate`, or −N where a
 /// tension-only member's total N + β k r would push ([`DampingModulus`]); with whether it
-/// is held there.
+/// is held there. A member snapping taut: β k max(0, R), R its [`SnapRate`].
 #[inline(always)]
 fn axial_damping(s: &MemberState, m: &DampingModulus, beta: f64, rate: f64) -> (f64, bool) {
+    if let Some(snap) = &m.snap {
+        return (beta * m.stiffness * snap.at(s.length, rate).max(0.0), false);
+    }
     let d = beta * m.stiffness * rate;
     if m.tension_only && d < -s.force {
         (-s.force, true)
@@ -149,6 +191,9 @@ impl ObjectiveDamping<'_> {
     /// symmetric part of the Jacobian, which Cholesky factors (see [`Self::skew_bound`] for
     /// when it serves). A tension-only member held at d = −N e has the block −k_T, minus
     /// its elastic tangent block ([`member_block`]: K_0 and K_G), symmetric, free of v.
+    /// A member snapping taut at rate R = a l + b r + c ([`SnapRate`]) has, with dR =
+    /// a e + b dr, the block β [(a k + b (c_v k − k ρ) + (dk/dl) R) e eᵀ + k (b e (P w)ᵀ +
+    /// R P)/l] where R > 0, none where its force is zero.
     pub fn add_jacobian(&self, c_v: f64, symmetric: bool, sink: &mut (impl TangentSink + ?Sized)) {
         for (e, nodes, s, m, w) in self.members() {
             let rate = elastic_rate(s, &w, self.rest_rate, e);
@@ -157,14 +202,24 @@ impl ObjectiveDamping<'_> {
                 continue;
             }
             let rho = self.rest_rate.get(e).copied().unwrap_or(0.0);
+            let (damped, axial, per_rate) = match &m.snap {
+                None => (rate, c_v * m.stiffness + m.curvature * rate - m.stiffness * rho, 1.0),
+                Some(snap) => {
+                    let damped = snap.at(s.length, rate);
+                    if damped <= 0.0 {
+                        continue;
+                    }
+                    let axial = snap.per_length * m.stiffness + snap.per_rate * (c_v - rho) * m.stiffness + m.curvature * damped;
+                    (damped, axial, snap.per_rate)
+                }
+            };
             let ee = s.dir * s.dir.transpose();
             let p = Matrix3::identity() - ee;
             let mut turning = s.dir * (p * w).transpose();
             if symmetric {
                 turning = (turning + turning.transpose()) * 0.5;
             }
-            let axial = c_v * m.stiffness + m.curvature * rate - m.stiffness * rho;
-            let k = (ee * (axial * self.beta)) + (turning + p * rate) * (self.beta * m.stiffness / s.length);
+            let k = (ee * (axial * self.beta)) + (turning * per_rate + p * damped) * (self.beta * m.stiffness / s.length);
             add_member_block(self.dofs, e, nodes, &k, sink);
         }
     }
@@ -187,8 +242,9 @@ impl ObjectiveDamping<'_> {
             if axial_damping(s, m, self.beta, elastic_rate(s, &w, self.rest_rate, e)).1 {
                 continue;
             }
+            let per_rate = m.snap.map_or(1.0, |snap| snap.per_rate);
             let turning = (w - s.dir * s.dir.dot(&w)).norm();
-            let norm = (self.beta * m.stiffness * turning / s.length).abs();
+            let norm = (self.beta * m.stiffness * per_rate * turning / s.length).abs();
             for n in nodes {
                 node_sum[n] += norm;
             }
@@ -259,8 +315,7 @@ pub enum MemberDamping<'a> {
     /// [`ObjectiveDamping`]: β k r along the member, k its modulus, r its elastic extension
     /// rate (`rest_rate`: l̇0/l0 per member, empty where no rest length changes).
     Objective {
-        /// Each member's modulus k = dN/dl [N/m] (zero where slack now or at the step's
-        /// start; [`DampingModulus`]).
+        /// Each member's modulus k = dN/dl [N/m] and snap rate ([`DampingModulus`]).
         moduli: &'a [DampingModulus],
         /// Rayleigh's β [s].
         beta: f64,

@@ -16,7 +16,7 @@ mod energy_momentum;
 pub use assembly::Assembly;
 pub use damping::{
     block_product, damping_moduli, member_axial_damping, member_damping_all, scaled_blocks, taut_members, DampingModulus, EndSlots,
-    MemberDamping, ObjectiveDamping,
+    MemberDamping, ObjectiveDamping, SnapRate,
 };
 pub use dofs::DofMap;
 pub use energy_momentum::{DiscreteGradient, EnergyMomentum};
