@@ -185,6 +185,7 @@ struct Sizes {
     ids: f64,
     h5: bool,
     mcap: bool,
+    paraview: bool,
 }
 
 impl Sizes {
@@ -196,6 +197,7 @@ impl Sizes {
             ids: model.members.iter().map(|m| m.id.len() as f64).sum(),
             h5: cfg.outputs.hdf5,
             mcap: cfg.outputs.mcap,
+            paraview: cfg.outputs.paraview,
         }
     }
 
@@ -209,7 +211,8 @@ impl Sizes {
     }
 
     /// One recorded frame: time (and fraction), position, velocity (time stepping only),
-    /// member force and length, four energies; the MCAP scene, forces and energy.
+    /// member force and length, four energies; the MCAP scene, forces and energy; the
+    /// VTKHDF time, points, displacements, velocities, forces and 9 offsets.
     fn frame(&self, dynamic: bool) -> f64 {
         let (nodes, members) = (self.nodes, self.members);
         let vectors = if dynamic { 6.0 } else { 3.0 };
@@ -217,6 +220,10 @@ impl Sizes {
         let member_columns = if dynamic { 3.0 } else { 2.0 };
         Self::on(self.h5, 8.0 * (2.0 + vectors * nodes + member_columns * members + 4.0))
             + Self::on(self.mcap, MCAP_PER_FRAME + MCAP_PER_MEMBER * members + self.ids)
+            + Self::on(
+                self.paraview,
+                8.0 * (10.0 + (vectors + 3.0) * nodes + (member_columns - 1.0) * members),
+            )
     }
 
     /// The partial eigensolver's sparse factorization (as Newton's) and its Krylov basis,

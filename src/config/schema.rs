@@ -631,6 +631,11 @@ pub struct OutputSpec {
     pub hdf5: bool,
     #[serde(default = "yes")]
     pub mcap: bool,
+    /// Write each time-stepping stage as `paraview/<stage>.vtkhdf`, a transient VTKHDF
+    /// grid ParaView opens directly (members as lines with their forces, nodes with their
+    /// displacements and velocities, every recorded step).
+    #[serde(default)]
+    pub paraview: bool,
     /// Frames per second of simulated time in `replay.mcap` for time-stepping stages
     /// [Hz]: a frame is logged when at least 1/rate has passed since the last one logged,
     /// and a stage's first and last frames always are; 0 logs every recorded step.
@@ -669,6 +674,7 @@ impl Default for OutputSpec {
             every: 1,
             hdf5: true,
             mcap: true,
+            paraview: false,
             replay_rate: default_replay_rate(),
             figures: false,
             clearance: true,

@@ -1,11 +1,12 @@
-//! The output files: `result.h5` ([`h5`]) and `replay.mcap` ([`replay`]), each a
-//! [`Recorder`], and the one writer thread that can stream them ([`Background`]). The only
+//! The output files: `result.h5` ([`h5`]), `replay.mcap` ([`replay`]) and
+//! `paraview/<stage>.vtkhdf` ([`paraview`]), each a [`Recorder`], and the one writer thread that can stream them ([`Background`]). The only
 //! module below `run` that knows files and threads.
 
 mod background;
 mod chunk;
 pub mod collected;
 pub mod h5;
+pub mod paraview;
 pub mod replay;
 
 pub use background::Background;
@@ -111,6 +112,9 @@ pub fn file_recorders(
         let path = dir.join("replay.mcap");
         let mcap = replacing(&path, |p| replay::McapRecorder::create(p, case_id, outputs.replay_rate))?;
         files.push(Box::new(Named::new(&path, mcap)));
+    }
+    if outputs.paraview {
+        files.push(Box::new(paraview::ParaviewRecorder::new(&dir.join(paraview::DIR))));
     }
     let files = Recorders(files);
     Ok(if background && !files.0.is_empty() {

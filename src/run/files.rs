@@ -2,6 +2,7 @@
 //! second `tsim run` out of a directory in use, and the check that a case's outputs are
 //! still what its outcome recorded before a resume trusts them.
 
+use crate::output::paraview::DIR as PARAVIEW_DIR;
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -55,13 +56,15 @@ pub fn keep_tables(dir: &Path, cases: &[&crate::run::Case]) -> std::io::Result<(
     Ok(())
 }
 
-/// The files a case writes in its directory.
+/// The files a case writes in its directory (and its ParaView files in [`PARAVIEW_DIR`]).
 const CASE_FILES: [&str; 4] = ["case.yaml", "result.h5", "replay.mcap", "outcome.json"];
 
 /// Makes `dir` safe to write a case into: Err when the directory is a symbolic link (its
 /// files would land wherever it points, outside --out); a link standing in place of one
-/// of the case's files is removed (the link, never its target), so that the file is
-/// created afresh inside the directory rather than written through the link.
+/// of the case's files or of its ParaView directory is removed (the link, never its
+/// target), so that the file is created afresh inside the directory rather than written
+/// through the link. A ParaView directory of an earlier run is removed whole: its stages
+/// may not be this run's.
 pub fn unlink_planted(dir: &Path) -> Result<(), String> {
     let is_link = |p: &Path| p.symlink_metadata().is_ok_and(|m| m.file_type().is_symlink());
     if is_link(dir) {
@@ -70,11 +73,15 @@ pub fn unlink_planted(dir: &Path) -> Result<(), String> {
             dir.display()
         ));
     }
-    for name in CASE_FILES {
+    for name in CASE_FILES.into_iter().chain([PARAVIEW_DIR]) {
         let path = dir.join(name);
         if is_link(&path) {
             std::fs::remove_file(&path).map_err(|e| format!("cannot remove the link {}: {e}", path.display()))?;
         }
+    }
+    let paraview = dir.join(PARAVIEW_DIR);
+    if paraview.is_dir() {
+        std::fs::remove_dir_all(&paraview).map_err(|e| format!("cannot remove {}: {e}", paraview.display()))?;
     }
     Ok(())
 }
@@ -134,14 +141,24 @@ fn scan(path: &Path) -> std::io::Result<Scan> {
     }
 }
 
-/// The output files a finished case wrote, with their lengths and checksums.
+/// The output files a finished case wrote, with their lengths and checksums: result.h5,
+/// replay.mcap and `paraview/<stage>.vtkhdf`, each under its name in `dir`.
 pub fn output_files(dir: &Path) -> OutputFiles {
-    ["result.h5", "replay.mcap"]
+    let mut paraview: Vec<String> = std::fs::read_dir(dir.join(PARAVIEW_DIR))
         .into_iter()
+        .flatten()
+        .filter_map(|entry| entry.ok()?.file_name().into_string().ok())
+        .filter(|name| name.ends_with(".vtkhdf"))
+        .map(|name| format!("{PARAVIEW_DIR}/{name}"))
+        .collect();
+    paraview.sort();
+    ["result.h5".to_string(), "replay.mcap".to_string()]
+        .into_iter()
+        .chain(paraview)
         .filter_map(|name| {
-            let s = scan(&dir.join(name)).ok()?;
+            let s = scan(&dir.join(&name)).ok()?;
             Some((
-                name.to_string(),
+                name,
                 OutputFile {
                     bytes: s.bytes,
                     crc32: format!("{:08x}", s.crc32),
@@ -164,9 +181,9 @@ pub fn changed(dir: &Path, files: &OutputFiles) -> Option<String> {
             return Some(format!("{name} is {} bytes, {} when the case completed", s.bytes, recorded.bytes));
         }
         let intact = match name.as_str() {
-            "result.h5" => s.head.starts_with(HDF5_SIGNATURE),
             "replay.mcap" => s.tail.ends_with(MCAP_MAGIC),
-            _ => true,
+            // result.h5 and the ParaView files.
+            _ => s.head.starts_with(HDF5_SIGNATURE),
         };
         if !intact {
             return Some(format!("{name} lacks its format's signature"));
@@ -483,6 +500,34 @@ mod tests {
         assert!(changed(dir, &files).unwrap().contains("signature"));
         std::fs::remove_file(dir.join("replay.mcap")).unwrap();
         assert!(changed(dir, &files).unwrap().starts_with("replay.mcap"));
+    }
+
+    /// The ParaView files count among a case's outputs, checked as HDF5 files; a run's
+    /// start removes an earlier run's directory of them (its stages may not be this run's),
+    /// and a link planted in its place (the link, not its target).
+    #[test]
+    fn paraview_files_are_outputs_and_an_old_run_s_are_removed() {
+        let scratch_dir = scratch("paraview");
+        let dir = scratch_dir.path();
+        let paraview = dir.join(PARAVIEW_DIR);
+        std::fs::create_dir(&paraview).unwrap();
+        let mut h5 = HDF5_SIGNATURE.to_vec();
+        h5.extend([0u8; 100]);
+        std::fs::write(paraview.join("drop.vtkhdf"), &h5).unwrap();
+        std::fs::write(paraview.join("notes.txt"), b"not an output").unwrap();
+        let files = output_files(dir);
+        assert_eq!(files.keys().collect::<Vec<_>>(), ["paraview/drop.vtkhdf"]);
+        assert_eq!(changed(dir, &files), None);
+        std::fs::write(paraview.join("drop.vtkhdf"), vec![0u8; h5.len()]).unwrap();
+        assert!(changed(dir, &files)
+            .unwrap()
+            .contains("paraview/drop.vtkhdf lacks its format's signature"));
+        unlink_planted(dir).unwrap();
+        assert!(!paraview.exists());
+        let elsewhere = scratch("paraview_target");
+        std::os::unix::fs::symlink(elsewhere.path(), &paraview).unwrap();
+        unlink_planted(dir).unwrap();
+        assert!(!paraview.exists() && elsewhere.path().exists());
     }
 
     #[test]

@@ -19,7 +19,7 @@
 //! sees grow.
 
 mod contacts;
-mod netcdf;
+pub(in crate::output) mod netcdf;
 mod series;
 #[cfg(test)]
 pub(super) mod tests;

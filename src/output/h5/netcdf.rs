@@ -42,7 +42,7 @@ pub(super) fn extendable<T: H5Type>(group: &Group, name: &str, width: usize) -> 
 }
 
 /// Appends `values` to the 1-D dataset `ds` of `start` rows.
-pub(super) fn append_rows<T: H5Type>(ds: &Dataset, start: usize, values: &[T]) -> Result<(), Error> {
+pub(in crate::output) fn append_rows<T: H5Type>(ds: &Dataset, start: usize, values: &[T]) -> Result<(), Error> {
     ds.resize(vec![start + values.len()])?;
     Ok(ds.write_slice(values, start..start + values.len())?)
 }

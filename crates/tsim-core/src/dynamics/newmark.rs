@@ -585,8 +585,8 @@ impl<'a> Newmark<'a> {
 
     /// One step of `dt: auto` of at most `dt` [s]: kept where its local error estimate
     /// ([`super::step_control`]) is within the tolerance, else taken again shorter, and
-    /// halved where Newton fails. Returns
-    /// the report of the step kept, its size, and the size the next step should try.
+    /// halved where Newton fails. Returns the report of the step kept, its size, and the
+    /// size the next step should try.
     pub fn advance_auto(&mut self, dt: f64, load: &dyn Fn(f64, &mut [f64])) -> Result<(NewtonReport, f64, f64), SolveError> {
         let auto = self.estimate.as_ref().expect("dt: auto sets up an estimate").settings;
         let mut dt = dt;
