@@ -5,7 +5,7 @@
 
 use super::sweep::{cells, label_value, numeric_labels, Cell, COLUMNS};
 use super::{CaseOutcome, CaseStatus};
-use crate::output::collected::{read_history, write, Collection, Column, History, Variable};
+use crate::output::collected::{read_frames, read_history, read_layout, write, Collection, Column, Frames, History, Variable, MAX_FRAMES};
 use crate::output::h5::ParamValue;
 use std::path::{Path, PathBuf};
 
@@ -58,11 +58,15 @@ pub fn collect_outcomes(dir: &Path, outcomes: &[CaseOutcome], verify: Verify) ->
         .unwrap_or_default();
     let mut missing = Vec::new();
     let histories = energy_histories(dir, outcomes, verify, &mut missing);
+    let (nodes, members, frames) = stage_frames(dir, outcomes, &missing);
     let c = Collection {
         ids: outcomes.iter().map(|o| o.id.clone()).collect(),
         coords: axis_coordinates(&axes, outcomes),
         vars: summary_variables(outcomes),
         histories,
+        nodes,
+        members,
+        frames,
         attrs: vec![
             ("tsim_version".into(), env!("CARGO_PKG_VERSION").into()),
             ("run_dir".into(), dir.display().to_string()),
@@ -144,6 +148,55 @@ fn summary_variables(outcomes: &[CaseOutcome]) -> Vec<Variable> {
         });
     }
     vars
+}
+
+/// The node positions and member forces of `STAGES` at every k-th recorded step
+/// ([`MAX_FRAMES`]) for every case not in `missing`, with the node and member ids they
+/// share; none where the cases' models differ (their ids), or a case's file cannot be read
+/// (it is in `missing` then: [`energy_histories`] read it first).
+fn stage_frames(dir: &Path, outcomes: &[CaseOutcome], missing: &[(String, String)]) -> (Vec<String>, Vec<String>, Vec<Frames>) {
+    let path = |o: &CaseOutcome| dir.join(&o.id).join("result.h5");
+    let present: Vec<&CaseOutcome> = outcomes.iter().filter(|o| !missing.iter().any(|(id, _)| *id == o.id)).collect();
+    let Ok(layouts) = present
+        .iter()
+        .map(|o| read_layout(&path(o), &STAGES))
+        .collect::<Result<Vec<_>, _>>()
+    else {
+        return Default::default();
+    };
+    let Some((nodes, members, _)) = layouts.first() else {
+        return Default::default();
+    };
+    if layouts.iter().any(|(n, m, _)| n != nodes || m != members) {
+        return Default::default();
+    }
+    let mut frames = Vec::new();
+    for (k, stage) in STAGES.iter().enumerate() {
+        let longest = layouts.iter().map(|l| l.2[k]).max().unwrap_or(0);
+        let stride = longest.div_ceil(MAX_FRAMES).max(1);
+        let mut f = Frames {
+            stage: stage.to_string(),
+            time_units: "s".into(),
+            stride,
+            ..Default::default()
+        };
+        for o in outcomes {
+            // A file that read for the energies and not here: the case's frames are NaN.
+            let read = present
+                .iter()
+                .any(|p| p.id == o.id)
+                .then(|| read_frames(&path(o), stage, stride).ok());
+            let (time, position, force, units) = read.flatten().unwrap_or_default();
+            if !time.is_empty() {
+                f.time_units = units;
+            }
+            f.time.push(time);
+            f.position.push(position);
+            f.force.push(force);
+        }
+        frames.push(f);
+    }
+    (nodes.clone(), members.clone(), frames)
 }
 
 /// The energy histories of `STAGES` for every case, empty for a case without complete

@@ -43,6 +43,19 @@ def test_collect_selects_by_a_swept_parameter(tmp_path, tsim_bin):
     np.testing.assert_allclose(float(ke.max()), float(by_zeta.deploy_peak_kinetic_j), rtol=1e-6)
     assert ds.deployment_time.attrs["units"] == "s"
 
+    # Positions and member forces at up to 500 steps per stage: every step of this short
+    # run (101 deployment steps), equal to result.h5's; a sweep plot of a node's height
+    # is one selection.
+    top_z = ds.deployment_position.sel(node="t0_0", xyz="z")
+    assert top_z.dims == ("case", "deployment_frame_time")
+    case_h5 = xr.open_dataset(run_dir / "cable-nylon_zeta-0.1" / "result.h5", engine="h5netcdf", group="deployment")
+    np.testing.assert_array_equal(top_z.sel(case="cable-nylon_zeta-0.1").values, case_h5.position.sel(node="t0_0", xyz="z").values)
+    forces = ds.deployment_member_force.sel(case="cable-nylon_zeta-0.1")
+    np.testing.assert_array_equal(forces.values, case_h5.member_force.values)
+    assert forces.dims == ("deployment_frame_time", "member") and forces.attrs["units"] == "N"
+    np.testing.assert_array_equal(ds.deployment_frame_time.values, case_h5.time.values)
+    assert ds.folding_position.sizes["folding_frame_time"] == 5
+
     # Each result.h5 knows its parameters without the YAML.
     attrs = xr.open_dataset(run_dir / "cable-nylon_zeta-0.1" / "result.h5", engine="h5netcdf").attrs
     assert attrs["sweep.cable"] == "nylon" and attrs["sweep.zeta"] == 0.1
@@ -73,7 +86,27 @@ def test_collect_keeps_a_failed_case_and_lists_it(tmp_path, tsim_bin):
     failed = ds.where(ds.status == "failed", drop=True)
     assert list(failed.zeta.values) == [0.1, 0.1]
     assert failed.deployment_kinetic_energy.isnull().all()
+    assert failed.deployment_position.isnull().all()
     assert "failed" in ds.attrs["missing"]
+
+
+def test_long_stages_are_collected_at_every_k_th_step(tmp_path, tsim_bin):
+    """1001 deployment steps: every 3rd (the least stride within 500 frames), 334 of them."""
+    text = (ROOT / "tests" / "fixtures" / "small_sweep.yaml").read_text()
+    long = text.replace("deployment:\n  duration: 0.1", "deployment:\n  duration: 1.0")
+    assert long != text
+    config = tmp_path / "long.yaml"
+    config.write_text(long)
+    subprocess.run([tsim_bin, "run", config, "--out", tmp_path, "--quiet", "--only", "cable-nylon_*"], check=True)
+    ds = xr.open_dataset(tmp_path / "small" / "collected.h5", engine="h5netcdf")
+    case_h5 = xr.open_dataset(tmp_path / "small" / "cable-nylon_zeta-0.1" / "result.h5", engine="h5netcdf", group="deployment")
+    assert case_h5.sizes["time"] == 1001 and ds.sizes["deployment_frame_time"] == 334
+    np.testing.assert_array_equal(ds.deployment_frame_time.values, case_h5.time.values[::3])
+    frames = ds.deployment_member_force.sel(case="cable-nylon_zeta-0.1").values
+    np.testing.assert_array_equal(frames, case_h5.member_force.values[::3])
+    assert "recorded steps 0, 3, 6, ..." in ds.deployment_member_force.attrs["long_name"]
+    # The pending cases (not selected) have NaN frames.
+    assert ds.deployment_position.sel(case="cable-rubber_zeta-0.1").isnull().all()
 
 
 def test_a_whole_number_axis_stays_whole(tmp_path, tsim_bin):
