@@ -68,7 +68,8 @@ pub(super) struct Objective {
     /// then is damped at its [`SnapRate`] in the step), and its damping modulus at the
     /// current states ([`DampingModulus`]).
     taut: Vec<bool>,
-    /// The flags of the step before, to see which members start to be damped, and those.
+    /// The flags of the step before, to see which members start to be damped on their
+    /// taut branch at this step's start, and those members ([`Viscous::newly_taut`]).
     was_taut: Vec<bool>,
     newly_taut: Vec<usize>,
     /// Per member, l − l0 at the step's start [m] (negative where slack).

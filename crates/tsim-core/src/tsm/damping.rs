@@ -47,9 +47,9 @@ pub struct DampingModulus {
 /// The rate R a member slack at a step's start is damped at, β k max(0, R) along it: an
 /// affine function R = a l + b r + c of its length l and elastic extension rate r at the
 /// state the step's equation holds at, chosen so that Δt times the force the step's
-/// velocity update weighs it with is the cord's impulse
-/// β k (l − l0) over the part of the step it is taut in: the whole impulse of the jump,
-/// with no need to find where in the step it falls.
+/// velocity update weighs it with is the cord's impulse β k (l − l0) over the part of the
+/// step it is taut in: the whole impulse of the jump, with no need to find where in the
+/// step it falls.
 /// - Newmark (equation at the step's end, velocity update weighing it by γ):
 ///   R = (l − l0)/(γΔt), zero as the member reaches l0.
 /// - Midpoint schemes (equation at the midpoint, weighing it by 1): R = r + (l_n − l0_n)/Δt,
@@ -57,7 +57,7 @@ pub struct DampingModulus {
 ///   O(Δt³), zero where the member ends the step at its rest length.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SnapRate {
-    /// a [1/s per m of length].
+    /// a [1/s].
     pub per_length: f64,
     /// b [1].
     pub per_rate: f64,
