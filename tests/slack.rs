@@ -34,6 +34,8 @@ struct Logged {
     viscous: Vec<f64>,
     applied: Vec<Vector3<f64>>,
     reactions: Vec<f64>,
+    /// Kinetic, strain and dissipated energy [J].
+    energies: [f64; 3],
 }
 
 impl Recorder for Log {
@@ -59,6 +61,7 @@ impl Recorder for Log {
                 viscous: f.viscous_forces.expect("a transient frame has its viscous forces").to_vec(),
                 applied: f.applied.to_vec(),
                 reactions: f.reactions.to_vec(),
+                energies: [f.energy.kinetic, f.energy.strain, f.energy.damping],
             });
         }
         Ok(())
@@ -143,17 +146,21 @@ fn twisted_prism(dt: f64, scheme: &str) -> CaseConfig {
     parse_case(&text, "twist.yaml").unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// The largest difference between runs `a` and `b` at time `t`: of the node positions [m]
-/// and of the member forces [N].
-fn gap(a: &Log, b: &Log, t: f64) -> (f64, f64) {
-    let at = |log: &Log| {
-        let f = log.frames.iter().find(|f| (f.time - t).abs() < 1e-9).expect("a frame at t");
-        (f.positions.clone(), f.forces.clone())
-    };
-    let ((pa, fa), (pb, fb)) = (at(a), at(b));
-    let dp = pa.iter().zip(&pb).fold(0.0_f64, |m, (x, y)| m.max((x - y).amax()));
-    let df = fa.iter().zip(&fb).fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
-    (dp, df)
+/// The largest difference between runs `a` and `b` at time `t`: of the node positions [m],
+/// the member forces [N], the reactions [N] and the kinetic, strain and dissipated energies
+/// [J].
+fn gap(a: &Log, b: &Log, t: f64) -> [f64; 4] {
+    fn at(log: &Log, t: f64) -> &Logged {
+        log.frames.iter().find(|f| (f.time - t).abs() < 1e-9).expect("a frame at t")
+    }
+    let (fa, fb) = (at(a, t), at(b, t));
+    let largest = |x: &mut dyn Iterator<Item = f64>| x.fold(0.0_f64, f64::max);
+    [
+        largest(&mut fa.positions.iter().zip(&fb.positions).map(|(x, y)| (x - y).amax())),
+        largest(&mut fa.forces.iter().zip(&fb.forces).map(|(x, y)| (x - y).abs())),
+        largest(&mut fa.reactions.iter().zip(&fb.reactions).map(|(x, y)| (x - y).abs())),
+        largest(&mut fa.energies.iter().zip(&fb.energies).map(|(x, y)| (x - y).abs())),
+    ]
 }
 
 /// The twisted prism by Newmark at Δt = 1, ½, ¼, ⅛, 1/16 ms: no cable pushes at any step,
@@ -168,7 +175,9 @@ fn gap(a: &Log, b: &Log, t: f64) -> (f64, f64) {
 /// - t = 0.05 s (end of the pulse): positions 2.57e-6, 6.34e-7, 1.58e-7, 3.91e-8 m (4.05,
 ///   4.01, 4.04), forces 1.66, 0.393, 0.107, 0.026 N (4.23, 3.65, 4.08).
 /// - t = 0.2 s, after many snaps: positions 1.59e-5, 3.97e-6, 9.82e-7, 2.46e-7 m (4.01,
-///   4.05, 3.99), forces 5.05, 1.35, 0.356, 0.099 N (3.75, 3.78, 3.59).
+///   4.05, 3.99), forces 5.05, 1.35, 0.356, 0.099 N (3.75, 3.78, 3.59), reactions 3.23,
+///   0.938, 0.237, 0.066 N (3.45, 3.96, 3.59), energies (kinetic, strain, dissipated)
+///   0.0665, 0.0166, 0.0042, 0.0010 J (4.02, 3.96, 4.01).
 ///
 /// With each snapping cable undamped until its step ended the ratios at 0.2 s were 2.77,
 /// 3.79, 4.39 (positions) and 0.75, 3.40, 3.87 (forces): first order at the coarse steps;
@@ -187,16 +196,18 @@ fn a_twisted_prism_s_cables_never_push_and_converge_as_dt_halves() {
 /// extrapolated from its midpoints' (bounded so that no cable pushes). Measured, largest
 /// differences of successive runs (ratios) at t = 0.2 s, after many snaps: positions
 /// 1.58e-5, 3.99e-6, 9.85e-7, 2.47e-7 m (3.96, 4.05, 3.99), forces 4.06, 1.28, 0.257,
-/// 0.081 N (3.18, 4.96, 3.19); with each snapping cable undamped for its step, 2.71, 3.79,
-/// 4.41 and 0.73, 3.51, 3.81. Asserted as for Newmark: every ratio ≥ 3 at both times.
+/// 0.081 N (3.18, 4.96, 3.19), reactions 3.11, 0.843, 0.191, 0.056 N (3.69, 4.41, 3.42),
+/// energies 0.0667, 0.0164, 0.0042, 0.0010 J (4.06, 3.95, 4.09); with each snapping cable
+/// undamped for its step, positions 2.71, 3.79, 4.41 and forces 0.73, 3.51, 3.81.
+/// Asserted as for Newmark: every ratio ≥ 3 at both times.
 #[test]
 fn by_energy_momentum_the_twisted_prism_converges_as_dt_halves() {
     assert_second_order_through_snaps("energy_momentum", &[0.05, 0.2]);
 }
 
 /// The twisted prism by `scheme` at Δt = 1, ½, ¼, ⅛, 1/16 ms: no cable pushes at any step,
-/// some are slack and some held; every ratio of successive differences of positions and
-/// member forces at `times` is ≥ 3 (second order, 4 per halving, less the pre-asymptotic
+/// some are slack and some held; every ratio of successive differences of positions,
+/// member forces, reactions and energies at `times` is ≥ 3 (second order, 4 per halving, less the pre-asymptotic
 /// scatter measured; first order would give 2).
 fn assert_second_order_through_snaps(scheme: &str, times: &[f64]) {
     let runs: Vec<Log> = [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5]
@@ -211,13 +222,10 @@ fn assert_second_order_through_snaps(scheme: &str, times: &[f64]) {
         })
         .collect();
     for &t in times {
-        let gaps: Vec<(f64, f64)> = runs.windows(2).map(|w| gap(&w[0], &w[1], t)).collect();
-        eprintln!("{scheme}, t = {t}: differences (positions [m], forces [N]) {gaps:?}");
-        let ratio: Vec<(f64, f64)> = gaps.windows(2).map(|g| (g[0].0 / g[1].0, g[0].1 / g[1].1)).collect();
-        assert!(
-            ratio.iter().all(|&(p, f)| p >= 3.0 && f >= 3.0),
-            "{scheme}, t = {t} s: ratios {ratio:?}"
-        );
+        let gaps: Vec<[f64; 4]> = runs.windows(2).map(|w| gap(&w[0], &w[1], t)).collect();
+        eprintln!("{scheme}, t = {t}: differences (positions [m], forces [N], reactions [N], energies [J]) {gaps:?}");
+        let ratio: Vec<[f64; 4]> = gaps.windows(2).map(|g| [0, 1, 2, 3].map(|k| g[0][k] / g[1][k])).collect();
+        assert!(ratio.iter().flatten().all(|&r| r >= 3.0), "{scheme}, t = {t} s: ratios {ratio:?}");
     }
 }
 
