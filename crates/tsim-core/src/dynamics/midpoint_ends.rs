@@ -12,7 +12,7 @@
 //! actuator's kink) its end force is the step's own.
 
 use super::viscous::Viscous;
-use crate::tsm::{member_damping_all, Assembly, MemberDamping};
+use crate::tsm::{held_at_no_compression, member_damping_all, Assembly, MemberDamping};
 use nalgebra::Vector3;
 
 /// The viscous axial forces the end of a midpoint scheme's step records and its reactions
@@ -91,7 +91,7 @@ impl MidpointEnds {
             *end = if laws[e].slack(s.length, asm.rest[e]) {
                 0.0
             } else {
-                end.max(-s.force)
+                held_at_no_compression(*end, s.force).0
             };
         }
         std::mem::swap(&mut self.last.0, &mut self.solved);

@@ -159,8 +159,19 @@ fn axial_damping(s: &MemberState, m: &DampingModulus, beta: f64, rate: f64) -> (
         return (beta * m.stiffness * snap.at(s.length, rate).max(0.0), false);
     }
     let d = beta * m.stiffness * rate;
-    if m.tension_only && d < -s.force {
-        (-s.force, true)
+    if m.tension_only {
+        held_at_no_compression(d, s.force)
+    } else {
+        (d, false)
+    }
+}
+
+/// A tension-only member's damping force `d`, with elastic force `n`, held at −n where its
+/// total n + d would push ([`DampingModulus`]); with whether it is held.
+#[inline(always)]
+pub fn held_at_no_compression(d: f64, n: f64) -> (f64, bool) {
+    if d < -n {
+        (-n, true)
     } else {
         (d, false)
     }

@@ -15,8 +15,8 @@ mod energy_momentum;
 
 pub use assembly::Assembly;
 pub use damping::{
-    block_product, damping_moduli, member_axial_damping, member_damping_all, scaled_blocks, taut_members, DampingModulus, EndSlots,
-    MemberDamping, ObjectiveDamping, SnapRate,
+    block_product, damping_moduli, held_at_no_compression, member_axial_damping, member_damping_all, scaled_blocks, taut_members,
+    DampingModulus, EndSlots, MemberDamping, ObjectiveDamping, SnapRate,
 };
 pub use dofs::DofMap;
 pub use energy_momentum::{DiscreteGradient, EnergyMomentum};
