@@ -42,6 +42,19 @@ pub fn install() -> Result<(), ctrlc::Error> {
     })
 }
 
+/// Asks the running cases to stop as a first signal would: the Python package's
+/// KeyboardInterrupt, where the process's signals are Python's.
+pub fn request_stop() {
+    INTERRUPTED.store(true, Ordering::SeqCst);
+}
+
+/// Forgets an earlier stop request, so that a process that runs several times (a Python
+/// session) starts each run afresh.
+pub fn clear_stop() {
+    INTERRUPTED.store(false, Ordering::SeqCst);
+    SIGNALS.store(0, Ordering::SeqCst);
+}
+
 /// Whether a signal has asked the run to stop.
 pub fn interrupted() -> bool {
     INTERRUPTED.load(Ordering::SeqCst)

@@ -14,7 +14,7 @@ mod sweep;
 
 pub use collect::{collect, Collected};
 pub use files::{OutputFile, OutputFiles};
-pub use interrupt::{install as install_interrupt, interrupted, EXIT_INTERRUPTED};
+pub use interrupt::{clear_stop, install as install_interrupt, interrupted, request_stop, EXIT_INTERRUPTED};
 pub use merge::{merge, Merged};
 pub use progress::Progress;
 pub use shard::{Plan, Shard};
