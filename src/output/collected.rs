@@ -115,7 +115,7 @@ pub type StageFrames = (Vec<f64>, Vec<f64>, Vec<f64>, String);
 
 /// The node and member ids of a finished `result.h5`, and each of `stages`' recorded step
 /// count (0 where it has none).
-pub fn read_layout(path: &Path, stages: &[&str]) -> Result<Layout, Error> {
+pub fn read_layout(path: &Path, stages: &[String]) -> Result<Layout, Error> {
     let file = File::open(path)?;
     let model = file.group("model")?;
     let ids = |name: &str| -> Result<Vec<String>, Error> {

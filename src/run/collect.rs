@@ -7,10 +7,8 @@ use super::sweep::{cells, label_value, numeric_labels, Cell, COLUMNS};
 use super::{CaseOutcome, CaseStatus};
 use crate::output::collected::{read_frames, read_history, read_layout, write, Collection, Column, Frames, History, Variable, MAX_FRAMES};
 use crate::output::h5::ParamValue;
+use crate::pipeline::StageSummary;
 use std::path::{Path, PathBuf};
-
-/// The stages whose energy histories are collected.
-const STAGES: [&str; 4] = ["static", "free_vibration", "folding", "deployment"];
 
 /// What `collect` wrote.
 #[derive(Clone, Debug)]
@@ -57,8 +55,9 @@ pub fn collect_outcomes(dir: &Path, outcomes: &[CaseOutcome], verify: Verify) ->
         .map(|o| o.params.iter().map(|(a, _)| a.clone()).collect())
         .unwrap_or_default();
     let mut missing = Vec::new();
-    let histories = energy_histories(dir, outcomes, verify, &mut missing);
-    let (nodes, members, frames) = stage_frames(dir, outcomes, &missing);
+    let stages = stepped_stages(outcomes);
+    let histories = energy_histories(dir, outcomes, &stages, verify, &mut missing);
+    let (nodes, members, frames) = stage_frames(dir, outcomes, &stages, &missing);
     let c = Collection {
         ids: outcomes.iter().map(|o| o.id.clone()).collect(),
         coords: axis_coordinates(&axes, outcomes),
@@ -150,18 +149,36 @@ fn summary_variables(outcomes: &[CaseOutcome]) -> Vec<Variable> {
     vars
 }
 
-/// The node positions and member forces of `STAGES` at every k-th recorded step
+/// The stages whose histories and frames are collected: each stage with steps (static,
+/// transient, folding, hold: not eigen) of any case's summary, by name, the paper's as a
+/// stage list's (`push`, `rest`).
+fn stepped_stages(outcomes: &[CaseOutcome]) -> Vec<String> {
+    let names: std::collections::BTreeSet<&String> = outcomes
+        .iter()
+        .filter_map(|o| o.summary.as_ref())
+        .flat_map(|s| {
+            s.stages
+                .iter()
+                .filter(|(_, stage)| !matches!(stage, StageSummary::Eigen(_)))
+                .map(|(name, _)| name)
+        })
+        .collect();
+    names.into_iter().cloned().collect()
+}
+
+/// The node positions and member forces of `stages` at every k-th recorded step
 /// ([`MAX_FRAMES`]) for every case not in `missing`, with the node and member ids they
 /// share; none where the cases' models differ (their ids), or a case's file cannot be read
 /// (it is in `missing` then: [`energy_histories`] read it first).
-fn stage_frames(dir: &Path, outcomes: &[CaseOutcome], missing: &[(String, String)]) -> (Vec<String>, Vec<String>, Vec<Frames>) {
+fn stage_frames(
+    dir: &Path,
+    outcomes: &[CaseOutcome],
+    stages: &[String],
+    missing: &[(String, String)],
+) -> (Vec<String>, Vec<String>, Vec<Frames>) {
     let path = |o: &CaseOutcome| dir.join(&o.id).join("result.h5");
     let present: Vec<&CaseOutcome> = outcomes.iter().filter(|o| !missing.iter().any(|(id, _)| *id == o.id)).collect();
-    let Ok(layouts) = present
-        .iter()
-        .map(|o| read_layout(&path(o), &STAGES))
-        .collect::<Result<Vec<_>, _>>()
-    else {
+    let Ok(layouts) = present.iter().map(|o| read_layout(&path(o), stages)).collect::<Result<Vec<_>, _>>() else {
         return Default::default();
     };
     let Some((nodes, members, _)) = layouts.first() else {
@@ -171,7 +188,7 @@ fn stage_frames(dir: &Path, outcomes: &[CaseOutcome], missing: &[(String, String
         return Default::default();
     }
     let mut frames = Vec::new();
-    for (k, stage) in STAGES.iter().enumerate() {
+    for (k, stage) in stages.iter().enumerate() {
         let longest = layouts.iter().map(|l| l.2[k]).max().unwrap_or(0);
         let stride = longest.div_ceil(MAX_FRAMES).max(1);
         let mut f = Frames {
@@ -199,11 +216,17 @@ fn stage_frames(dir: &Path, outcomes: &[CaseOutcome], missing: &[(String, String
     (nodes.clone(), members.clone(), frames)
 }
 
-/// The energy histories of `STAGES` for every case, empty for a case without complete
+/// The energy histories of `stages` for every case, empty for a case without complete
 /// results (or, verifying, whose outputs changed since), which is added to `missing`
 /// with the reason.
-fn energy_histories(dir: &Path, outcomes: &[CaseOutcome], verify: Verify, missing: &mut Vec<(String, String)>) -> Vec<History> {
-    let mut histories: Vec<History> = STAGES
+fn energy_histories(
+    dir: &Path,
+    outcomes: &[CaseOutcome],
+    stages: &[String],
+    verify: Verify,
+    missing: &mut Vec<(String, String)>,
+) -> Vec<History> {
+    let mut histories: Vec<History> = stages
         .iter()
         .map(|s| History {
             stage: s.to_string(),
@@ -212,7 +235,7 @@ fn energy_histories(dir: &Path, outcomes: &[CaseOutcome], verify: Verify, missin
         })
         .collect();
     for o in outcomes {
-        let mut rows = vec![(Vec::new(), Vec::new(), Vec::new()); STAGES.len()];
+        let mut rows = vec![(Vec::new(), Vec::new(), Vec::new()); stages.len()];
         let why = match (o.status, &o.reason) {
             (CaseStatus::Complete, _) if verify == Verify::Outputs => super::files::changed(&dir.join(&o.id), &o.files),
             (CaseStatus::Complete, _) => None,
@@ -223,7 +246,7 @@ fn energy_histories(dir: &Path, outcomes: &[CaseOutcome], verify: Verify, missin
             missing.push((o.id.clone(), why));
         } else {
             let path = dir.join(&o.id).join("result.h5");
-            let read: Result<Vec<_>, _> = STAGES.iter().map(|s| read_history(&path, s)).collect();
+            let read: Result<Vec<_>, _> = stages.iter().map(|s| read_history(&path, s)).collect();
             match read {
                 Ok(read) => {
                     for ((h, row), (time, kinetic, strain, units)) in histories.iter_mut().zip(&mut rows).zip(read) {

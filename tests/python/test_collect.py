@@ -130,3 +130,28 @@ def test_a_whole_number_axis_stays_whole(tmp_path, tsim_bin):
     assert list(ds.steps.values) == [4, 8]
     df = pd.read_csv(run_dir / "summary.csv")
     assert df.steps.dtype.kind == "i" and list(df.steps) == [4, 8]
+
+
+def test_collect_takes_the_stages_a_stage_list_names(tmp_path, tsim_bin):
+    # configs/examples/prism_drop.yaml's stages are `eigen`, `drop` (a transient) and `rest`
+    # (static): a sweep of it collects `drop` and `rest`, the stages with steps, by their names.
+    text = (ROOT / "configs" / "examples" / "prism_drop.yaml").read_text()
+    text += "sweep:\n  axes:\n    - name: mass\n      values:\n" + "".join(
+        f"        - {{ label: \"{m}\", set: {{ point_masses: [{{ groups: [top], mass: {m} }}] }} }}\n" for m in (10, 20)
+    )
+    config = tmp_path / "prism_drop.yaml"
+    config.write_text(text)
+    subprocess.run([tsim_bin, "run", config, "--out", tmp_path, "--quiet"], check=True)
+    ds = xr.open_dataset(tmp_path / "prism_drop" / "collected.h5", engine="h5netcdf")
+    assert {"drop_position", "drop_member_force", "drop_kinetic_energy", "rest_position"} <= set(ds.data_vars)
+    assert not any(v.startswith("eigen_") and v != "eigen_s" for v in ds.data_vars)
+    for case in ds.case.values:
+        drop = xr.open_dataset(tmp_path / "prism_drop" / case / "result.h5", engine="h5netcdf", group="drop")
+        # 3001 steps, every 7th kept (the least stride keeping <= 500 frames).
+        assert drop.sizes["time"] == 3001 and ds.sizes["drop_frame_time"] == 429
+        np.testing.assert_array_equal(ds.drop_frame_time.values, drop.time.values[::7])
+        np.testing.assert_array_equal(ds.drop_position.sel(case=case).values, drop.position.values[::7])
+        np.testing.assert_array_equal(ds.drop_member_force.sel(case=case).values, drop.member_force.values[::7])
+    # The heavier payload sinks further: the cases are not one file read twice.
+    z = ds.rest_position.sel(node="t0", xyz="z").isel(rest_frame_time=-1)
+    assert float(z.sel(case="mass-20")) < float(z.sel(case="mass-10"))
