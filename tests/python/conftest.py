@@ -18,3 +18,12 @@ def tsim_bin():
         cwd=ROOT, check=True, capture_output=True, text=True,
     )
     return Path(json.loads(meta.stdout)["target_directory"]) / "release" / "tsim"
+
+
+@pytest.fixture(scope="session")
+def wheel():
+    """The Python package's wheel (python/), built or refreshed by scripts/wheel."""
+    subprocess.run([ROOT / "scripts" / "wheel", "--quiet"], check=True, cwd=ROOT)
+    wheels = sorted((ROOT / "target" / "wheels").glob("tsim-*-abi3-*.whl"), key=lambda p: p.stat().st_mtime)
+    assert wheels, "scripts/wheel wrote no abi3 wheel into target/wheels"
+    return wheels[-1]

@@ -22,15 +22,12 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def venv(tmp_path_factory):
-    """A fresh virtualenv with the wheel installed (scripts/wheel builds or refreshes it)."""
-    subprocess.run([ROOT / "scripts" / "wheel", "--quiet"], check=True, cwd=ROOT)
-    wheels = sorted((ROOT / "target" / "wheels").glob("tsim-*-abi3-*.whl"), key=lambda p: p.stat().st_mtime)
-    assert wheels, "scripts/wheel wrote no abi3 wheel into target/wheels"
+def venv(tmp_path_factory, wheel):
+    """A fresh virtualenv with the wheel installed."""
     env_dir = tmp_path_factory.mktemp("venv")
     subprocess.run([sys.executable, "-m", "venv", env_dir], check=True)
     pip = [env_dir / "bin" / "python", "-m", "pip", "install", "--quiet", "--disable-pip-version-check"]
-    subprocess.run([*pip, wheels[-1]], check=True)
+    subprocess.run([*pip, wheel], check=True)
     return env_dir
 
 

@@ -2,6 +2,7 @@
 
 import json
 import os
+import sys
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
@@ -34,6 +35,8 @@ def run(config, out="runs", *, jobs=None, force=False, only=(), allow_large=Fals
     """
     if isinstance(only, str):
         only = [only]
+    # `outputs.figures` draws with TSIM_PYTHON: this interpreter, unless the user named another.
+    os.environ.setdefault("TSIM_PYTHON", sys.executable)
     if jobs is not None and (isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1):
         raise ValueError(f"jobs={jobs!r}: give a whole number >= 1, or None for one per core")
     options = dict(
