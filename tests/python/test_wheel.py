@@ -146,3 +146,45 @@ def test_the_api_runs_a_model_from_arrays_beside_h5py(venv, tsim_bin, tmp_path):
                    check=True, capture_output=True)
     with h5py.File(tmp_path / "bin" / "prism_selfweight" / "prism_selfweight" / "result.h5") as f:
         np.testing.assert_array_equal(np.array(got["position"]), f["static/position"][()])
+
+
+# A long run from Python, stopped by SIGINT (Ctrl-C, a notebook's stop button) once its
+# result.h5 exists: KeyboardInterrupt is raised after the case closed its file.
+INTERRUPT_SCRIPT = textwrap.dedent(
+    """
+    import json, sys
+    import h5py, tsim
+    try:
+        tsim.run(sys.argv[1], out="runs")
+        outcome = "finished"
+    except KeyboardInterrupt:
+        outcome = "KeyboardInterrupt"
+    with h5py.File("runs/prism_drop/prism_drop/result.h5", "r") as f:
+        status = f.attrs["status"].decode()
+    summary = json.load(open("runs/prism_drop/summary.json"))
+    print(json.dumps({"outcome": outcome, "status": status, "case": summary[0]["status"]}))
+    """
+)
+
+
+def test_ctrl_c_stops_a_python_run_and_closes_its_files(venv, tmp_path):
+    import signal
+    import time
+
+    text = (ROOT / "configs" / "examples" / "prism_drop.yaml").read_text()
+    long = text.replace("duration: 3.0,", "duration: 300.0,")  # minutes: far past the signal
+    assert long != text
+    (tmp_path / "long.yaml").write_text(long)
+    (tmp_path / "interrupt.py").write_text(INTERRUPT_SCRIPT)
+    env = {"PATH": f"{venv / 'bin'}:/usr/bin:/bin", "HOME": os.environ.get("HOME", "/root")}
+    proc = subprocess.Popen([venv / "bin" / "python", "interrupt.py", "long.yaml"], cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    result = tmp_path / "runs" / "prism_drop" / "prism_drop" / "result.h5"
+    deadline = time.monotonic() + 60
+    while not result.exists() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.1)
+    time.sleep(1.0)  # into the transient
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err
+    got = json.loads(out)
+    assert got == {"outcome": "KeyboardInterrupt", "status": "interrupted", "case": "interrupted"}, (got, err)
