@@ -37,6 +37,7 @@ from PIL import Image  # noqa: E402  (a matplotlib dependency)
 DPI = 100
 # Figure sizes [inches]; at the default dpi a figure is 100x these in pixels.
 SIZES = {
+    "structure": (12.0, 6.0),
     "formfinding": (10.0, 5.0),
     "free_vibration_energy": (8.0, 4.5),
     "eigen_spectrum": (8.0, 4.5),
@@ -48,6 +49,11 @@ SIZES = {
     "sweep_overview": (12.0, 4.5),
 }
 CASE_FIGURES = [name for name in SIZES if name != "sweep_overview"]
+# A stage with steps that the paper's figures do not cover (a stage list's `drop`, `rest`, or
+# a `static` stage) gets `stage_<name>.png` of this size.
+STAGE_SIZE = (12.0, 4.5)
+PAPER_STAGES = ["free_vibration", "folding", "deployment"]
+STEPPED_KINDS = {"static", "transient", "folding", "hold"}
 
 # Member force states (paper Figures 2 and 11: compression brown, tension red, slack grey).
 COLOURS = {
@@ -98,6 +104,8 @@ class Case:
         if self.model is None:
             raise SystemExit(f"figures: {path} has no /model group: not a tsim result.h5")
         self.formfinding = self.group("formfinding")
+        # The equilibrium of a model given with rest lengths (instead of form-finding).
+        self.given = self.group("equilibrium")
         self.eigen = self.group("eigen")
         self.stages = {}
         for name in ["free_vibration", "folding", "deployment"]:
@@ -105,16 +113,26 @@ class Case:
             ds = self.group(name, drop=["velocity", "member_length"])
             # Time-stepping groups always exist; a stage that did not run has no steps.
             self.stages[name] = ds if ds is not None and ds.sizes.get("time", 0) > 0 else None
+        # The other stages with steps, in the file's order: (kind, dataset) by name.
+        self.other = {}
+        import h5netcdf
+
+        with h5netcdf.File(self.path, "r") as f:
+            kinds = {name: str(g.attrs.get("stage_kind", "")) for name, g in f.groups.items()}
+        for name, kind in kinds.items():
+            if kind in STEPPED_KINDS and name not in PAPER_STAGES:
+                ds = self.group(name, drop=["velocity", "member_length"])
+                if ds is not None and ds.sizes.get("time", 0) > 0:
+                    self.other[name] = (kind, ds)
         self.kind = self.model.member_kind.values.astype(str)
         self.ends = self.model.member_nodes.values.astype(int)
         self.node_ids = self.model.node.values.astype(str)
         self.groups = [set(g.split(",")) if g else set() for g in self.model.node_group.values.astype(str)]
         self.support = self.model.support.values.astype(bool)
-        self.equilibrium = (self.formfinding.position if self.formfinding is not None else self.model.initial_position).values
-        if self.formfinding is not None:
-            self.force_ref = float(np.abs(self.formfinding.member_force.values).max())
-        else:
-            self.force_ref = None
+        balanced = self.formfinding if self.formfinding is not None else self.given
+        self.equilibrium = (balanced.position if balanced is not None else self.model.initial_position).values
+        self.prestress = balanced.member_force.values if balanced is not None else None
+        self.force_ref = float(np.abs(self.prestress).max()) if self.prestress is not None else None
         self.camera = self._camera()
         with xr.open_dataset(self.path, engine="h5netcdf") as root:
             config = str(root.attrs.get("config", ""))
@@ -138,7 +156,7 @@ class Case:
     def _camera(self):
         """Cube (centre, half side) around every position in the file."""
         boxes = [self.model.initial_position.values, self.equilibrium]
-        for ds in self.stages.values():
+        for ds in [*self.stages.values(), *(ds for _, ds in self.other.values())]:
             if ds is not None:
                 p = ds.position.values
                 boxes += [p.min(axis=0), p.max(axis=0)]
@@ -230,6 +248,59 @@ def legend(fig, states, extra=()):
 
 def new_figure(name, dpi):
     return plt.figure(figsize=SIZES[name], dpi=dpi)
+
+
+def structure_figure(case, dpi):
+    """The model at its equilibrium (form-found, or given and balanced): members by force
+    state, supports, and node ids where there are few enough to read."""
+    fig = new_figure("structure", dpi)
+    pos = case.equilibrium
+    states = set()
+    for k, (view, title) in enumerate([(BIRD, "bird's-eye"), (SIDE, "side (x-z)")]):
+        ax = axes3d(fig, (1, 2, k + 1), case, view, title)
+        states |= draw(ax, case, pos, case.prestress)
+        if len(pos) <= 30:
+            for i, name in enumerate(case.node_ids):
+                ax.text(*pos[i], f" {name}", fontsize=7)
+    struts = int((case.kind == "strut").sum())
+    held = int(case.support.sum())
+    what = "prestressed equilibrium" if case.prestress is not None else "shape as given"
+    fig.suptitle(f"Structure: {len(pos)} nodes, {len(case.kind)} members ({struts} struts, "
+                 f"{len(case.kind) - struts} cables), {held} supported directions; {what}")
+    fig.subplots_adjust(left=0.02, right=0.98, top=0.9, bottom=0.08, wspace=0.05)
+    legend(fig, states)
+    return fig
+
+
+def stage_figure(case, name, dpi):
+    """A stage with steps the paper's figures do not cover: its start (dashed) and end
+    shapes, end forces, and its energies over the stage."""
+    kind, ds = case.other[name]
+    fig = plt.figure(figsize=STAGE_SIZE, dpi=dpi)
+    start, end = ds.isel(time=0), ds.isel(time=-1)
+    t = ds.time.values
+    unit = ds.time.attrs.get("units", "")
+    at = f"t = {t[-1]:.4g} s" if unit == "s" else f"step {t[-1]:g}"
+    states = set()
+    for k, (view, title) in enumerate([(BIRD, f"bird's-eye, end ({at})"), (SIDE, "side (x-z), end")]):
+        ax = axes3d(fig, (1, 3, k + 1), case, view, title + "\nstart dashed")
+        states |= draw(ax, case, end.position.values, end.member_force.values, ghost=start.position.values)
+    ax = fig.add_subplot(1, 3, 3)
+    for var, colour in [("kinetic_energy", "#2c7bb6"), ("strain_energy", "#d7191c"),
+                        ("external_work", "#888888"), ("damping_energy", "#1a9641")]:
+        if var in ds and np.any(ds[var].values != 0):
+            ax.plot(t, ds[var].values, color=colour, label=var.replace("_", " "))
+    ax.set_xlabel("time [s]" if unit == "s" else "step")
+    ax.set_ylabel("energy [J]")
+    ax.set_title("energies", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    u = np.linalg.norm(end.position.values - start.position.values, axis=1).max()
+    fig.suptitle(f"Stage `{name}` ({kind}): {ds.sizes['time'] - 1} steps, largest node displacement {u:.3g} m, "
+                 f"member forces {end.member_force.values.min():.3g} to {end.member_force.values.max():.3g} N")
+    fig.subplots_adjust(left=0.02, right=0.98, top=0.85, bottom=0.14, wspace=0.15)
+    legend(fig, states)
+    return fig
 
 
 def formfinding_figure(case, dpi):
@@ -530,7 +601,8 @@ def main(argv=None):
     ap.add_argument("--out", type=Path, help="output directory (default: <case or sweep dir>/figures)")
     ap.add_argument("--svg", action="store_true", help="also write SVG")
     ap.add_argument("--dpi", type=int, default=DPI, help=f"resolution (default {DPI}: pixels = 100 x inches)")
-    ap.add_argument("--only", nargs="+", metavar="NAME", choices=list(SIZES), help="draw only these figures")
+    ap.add_argument("--only", nargs="+", metavar="NAME",
+                    help=f"draw only these figures ({', '.join(SIZES)}, stage_<name>)")
     ap.add_argument("--node", help="node id for deployment_top_node (default: the first top node)")
     ap.add_argument("--x", help="sweep: column on the x axis (default: zeta, else the last numeric swept column)")
     ap.add_argument("--hue", help="sweep: one line per value of this column (default: the first text swept column)")
@@ -563,7 +635,12 @@ def main(argv=None):
     status = status.decode() if isinstance(status, bytes) else str(status)
     if status.strip("\x00").strip() != "complete":
         note(f"{h5}: status `{status.strip()}`: drawing what the file holds")
+    known = set(SIZES) | {f"stage_{name}" for name in case.other}
+    unknown = sorted(set(args.only or ()) - known)
+    if unknown:
+        raise SystemExit(f"figures: --only {' '.join(unknown)}: no such figure here; the figures: {', '.join(sorted(known))}")
     needs = {
+        "structure": (case.model, "model", structure_figure),
         "formfinding": (case.formfinding, "form-finding", formfinding_figure),
         "free_vibration_energy": (case.stages["free_vibration"], "free vibration", free_vibration_figure),
         "eigen_spectrum": (case.eigen, "eigen analysis", eigen_figure),
@@ -583,6 +660,11 @@ def main(argv=None):
             continue
         t1 = time.perf_counter()
         save(make(case, args.dpi), name, out, args.svg, args.dpi, t1)
+    for stage in case.other:
+        if args.only and f"stage_{stage}" not in args.only:
+            continue
+        t1 = time.perf_counter()
+        save(stage_figure(case, stage, args.dpi), f"stage_{stage}", out, args.svg, args.dpi, t1)
     print(f"figures: done in {time.perf_counter() - t0:.1f} s (reading result.h5: {t_read:.1f} s)")
     return 0
 

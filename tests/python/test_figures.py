@@ -23,6 +23,7 @@ FIGURES = ROOT / "scripts" / "figures"
 # Expected (width, height) in pixels: scripts/figures.py fixes each figure's size in inches
 # and saves at 100 dpi without a tight bounding box, so these are exact.
 CASE_SIZES = {
+    "structure": (1200, 600),
     "formfinding": (1000, 500),
     "free_vibration_energy": (800, 450),
     "eigen_spectrum": (800, 450),
@@ -33,6 +34,7 @@ CASE_SIZES = {
     "deployment_energy": (1200, 450),
 }
 SWEEP_SIZES = {"sweep_overview": (1200, 450)}
+STAGE_SIZE = (1200, 450)  # stage_<name>.png
 
 # "Not blank", two ways, on RGB values in [0, 1]:
 # - Variance of the grey level above 1e-3. A blank (single-colour) canvas has variance 0;
@@ -116,7 +118,7 @@ def test_absent_stages_are_skipped(tsim_bin, tmp_path):
     subprocess.run([tsim_bin, "run", config, "--out", tmp_path / "runs", "--quiet"], check=True)
     case = next((tmp_path / "runs").rglob("result.h5")).parent
     res = figures(case)
-    drawn = {"formfinding", "folding"}
+    drawn = {"structure", "formfinding", "folding"}
     for name in drawn:
         check_png(case / "figures" / f"{name}.png", CASE_SIZES[name])
     assert sorted(p.stem for p in (case / "figures").glob("*.png")) == sorted(drawn)
@@ -167,3 +169,23 @@ def test_no_rayleigh_draws_no_damping_axis(tsim_bin, tmp_path):
     case = figures_module.Case(tmp_path / "small" / "small" / "result.h5")
     fig = figures_module.eigen_figure(case, 100)
     assert len(fig.axes) == 1 and fig.axes[0].get_title().endswith("; no Rayleigh damping"), fig.axes[0].get_title()
+
+
+def test_a_given_model_and_a_stage_list_get_their_figures(tsim_bin, tmp_path):
+    # configs/examples/prism_drop.yaml: a model given as nodes and members (no form-finding)
+    # and the stages `eigen`, `drop` (transient) and `rest` (static), none of the paper's
+    # names: the structure at its equilibrium, the eigen figures and one figure per stage.
+    subprocess.run([tsim_bin, "run", ROOT / "configs" / "examples" / "prism_drop.yaml", "--out", tmp_path, "--quiet"], check=True)
+    case = tmp_path / "prism_drop" / "prism_drop"
+    res = figures(case)
+    check_png(case / "figures" / "structure.png", CASE_SIZES["structure"])
+    for name in ["stage_drop", "stage_rest"]:
+        check_png(case / "figures" / f"{name}.png", STAGE_SIZE)
+        assert f"wrote {case / 'figures' / name}.png" in res.stdout
+    assert sorted(p.stem for p in (case / "figures").glob("*.png")) == sorted(
+        ["structure", "eigen_spectrum", "mode_shapes", "stage_drop", "stage_rest"])
+    # --only takes a stage's figure by name and refuses one that is not there.
+    only = subprocess.run([FIGURES, case, "--out", tmp_path / "only", "--only", "stage_rest"], capture_output=True, text=True, cwd=ROOT)
+    assert only.returncode == 0 and sorted(p.name for p in (tmp_path / "only").iterdir()) == ["stage_rest.png"]
+    wrong = subprocess.run([FIGURES, case, "--only", "stage_fall"], capture_output=True, text=True, cwd=ROOT)
+    assert wrong.returncode != 0 and "stage_fall" in wrong.stderr and "stage_drop" in wrong.stderr

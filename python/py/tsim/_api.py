@@ -121,6 +121,19 @@ class Run:
         the run has one case."""
         return _dataset(self.path(case), stage, lazy)
 
+    def figures(self, case=None, *options):
+        """Draw a case's figures (`case` None: the only case, or the sweep's overview of
+        several) as `tsim figures` does, with this interpreter; their folder. `options` are
+        the command's (`"--svg"`, `"--dpi", "60"`, `"--only", "deployment_energy"`;
+        docs/figures.md). Needs matplotlib: `pip install "tsim[figures]"`."""
+        path = self.directory if case is None and len(self.outcomes) > 1 else self.directory / self._case(case)
+        os.environ.setdefault("TSIM_PYTHON", sys.executable)
+        code = _tsim.cli(["tsim", "figures", os.fspath(path), *map(str, options)])
+        if code != 0:
+            raise RuntimeError(f"tsim figures {path} exited {code}: its messages are on standard error")
+        out = options[list(options).index("--out") + 1] if "--out" in options else path / "figures"
+        return Path(out)
+
     def _case(self, case):
         if case is None:
             if len(self.outcomes) != 1:
