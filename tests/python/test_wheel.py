@@ -93,7 +93,8 @@ def prism_arrays():
 
 # Run inside the fresh virtualenv: h5py (with its own HDF5) imported and a file of its own
 # open before tsim runs, a model built from NumPy arrays, tsim's files read back by h5py and
-# xarray in the same process, h5py's file written again after.
+# xarray in the same process and by tsim's own HDF5 while h5py holds them open, h5py's file
+# written again after.
 API_SCRIPT = textwrap.dedent(
     """
     import json, sys
@@ -114,6 +115,11 @@ API_SCRIPT = textwrap.dedent(
     ds = run.result(stage="static")
     assert np.array_equal(ds["position"].values, position)
     summary = run.summary()
+    # tsim's HDF5 reads result.h5 again (`tsim collect`, in-process) while h5py holds it open.
+    held = h5py.File(run.path(), "r")
+    assert tsim._tsim.cli(["tsim", "collect", str(run.directory)]) == 0
+    assert np.array_equal(run.collected().static_position.values[0], position)
+    held.close()
     mine["y"] = position
     mine.close()
     with h5py.File("mine.h5", "r") as f:
