@@ -42,7 +42,7 @@ def test_figures_from_python(wheel, tmp_path):
     script = (
         "import sys, tsim\n"
         f"run = tsim.run({str(ROOT / 'configs' / 'examples' / 'prism_selfweight.yaml')!r}, out='runs')\n"
-        "folder = run.figures(None, '--dpi', '40')\n"
+        "folder = run.figures(options=['--dpi', '40'])\n"
         "print(sorted(p.name for p in folder.glob('*.png')))\n"
     )
     env = {k: v for k, v in os.environ.items() if k != "TSIM_PYTHON"}

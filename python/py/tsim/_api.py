@@ -65,8 +65,8 @@ def _plain(value):
         return value.item()
     if isinstance(value, os.PathLike):
         return os.fspath(value)
-    if isinstance(value, (tuple, set, frozenset)):
-        return list(value)
+    if isinstance(value, (set, frozenset)):
+        return sorted(value)
     raise TypeError(f"{type(value).__name__} {value!r} has no place in a tsim config")
 
 
@@ -116,22 +116,23 @@ class Run:
         return self.directory / self._case(case) / name
 
     def result(self, case=None, stage=None, lazy=False):
-        """A stage's group of a case's result.h5 as an xarray Dataset (the file's root,
-        with the model and its status, when `stage` is None). `case` may be left out when
-        the run has one case."""
+        """A group of a case's result.h5 as an xarray Dataset: a stage's by its name,
+        `"model"`, or with `stage` None the root (its attributes: status, config, sweep
+        parameters). `case` may be left out when the run has one case."""
         return _dataset(self.path(case), stage, lazy)
 
-    def figures(self, case=None, *options):
+    def figures(self, case=None, options=()):
         """Draw a case's figures (`case` None: the only case, or the sweep's overview of
         several) as `tsim figures` does, with this interpreter; their folder. `options` are
-        the command's (`"--svg"`, `"--dpi", "60"`, `"--only", "deployment_energy"`;
+        the command's (`["--svg"]`, `["--dpi", "60"]`, `["--only", "structure"]`;
         docs/figures.md). Needs matplotlib: `pip install "tsim[figures]"`."""
+        options = [str(o) for o in options]
         path = self.directory if case is None and len(self.outcomes) > 1 else self.directory / self._case(case)
         os.environ.setdefault("TSIM_PYTHON", sys.executable)
-        code = _tsim.cli(["tsim", "figures", os.fspath(path), *map(str, options)])
+        code = _tsim.cli(["tsim", "figures", os.fspath(path), *options])
         if code != 0:
             raise RuntimeError(f"tsim figures {path} exited {code}: its messages are on standard error")
-        out = options[list(options).index("--out") + 1] if "--out" in options else path / "figures"
+        out = options[options.index("--out") + 1] if "--out" in options else path / "figures"
         return Path(out)
 
     def _case(self, case):
