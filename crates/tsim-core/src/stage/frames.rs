@@ -32,8 +32,8 @@ pub struct FrameBuilder {
     constraints: Constraints,
     /// Lumped mass of every node [kg] (zero for a massless structure).
     masses: Vec<f64>,
-    /// The members' axial forces (elastic + viscous) and the node velocities.
-    axial: AxialForces,
+    /// A static frame's member forces (a dynamic one's come with its [`Motion`]).
+    statics: Vec<f64>,
     lengths: Vec<f64>,
     reactions: Vec<f64>,
     /// The members' β damping force on all 3n directions (zero in static stages), summed
@@ -67,6 +67,9 @@ pub struct EquilibriumCheck {
 #[derive(Clone, Copy)]
 pub struct Motion<'n, 'a> {
     pub newmark: &'n Newmark<'a>,
+    /// The step's member forces and node velocities, updated by the caller (who reads them
+    /// for its summary too: found once per step).
+    pub axial: &'n AxialForces,
     /// Acceleration of the supports (the base) [m/s²]: zero unless the ground moves.
     pub support_acceleration: Vector3<f64>,
 }
@@ -92,7 +95,7 @@ impl FrameBuilder {
             reactions: vec![0.0; constraints.len()],
             constraints,
             masses: (0..nodes).map(|n| structure.masses.get(n).copied().unwrap_or(0.0)).collect(),
-            axial: AxialForces::default(),
+            statics: Vec::new(),
             lengths: Vec::new(),
             damping: vec![0.0; 3 * nodes],
             check: EquilibriumCheck::default(),
@@ -154,20 +157,21 @@ impl FrameBuilder {
         let mut base = Vector3::zeros();
         if let Some(Motion {
             newmark: nm,
+            axial,
             support_acceleration,
         }) = motion
         {
-            self.axial.update(nm);
             for (i, &vi) in nm.v.iter().enumerate() {
                 let (_, a) = asm.dofs.owner(i);
                 balance[a] -= nm.mass[i] * (nm.a[i] + nm.rayleigh().alpha * vi);
             }
-            nm.member_damping_force(&self.constrained_members, &self.axial.velocities, &mut self.damping);
+            nm.member_damping_force(&self.constrained_members, &axial.velocities, &mut self.damping);
             base = support_acceleration;
         } else {
-            self.axial.total.clear();
-            self.axial.total.extend(asm.states.iter().map(|s| s.force));
+            self.statics.clear();
+            self.statics.extend(asm.states.iter().map(|s| s.force));
         }
+        let forces = motion.map_or(&self.statics[..], |m| &m.axial.total[..]);
         let mut reaction_sum = Vector3::zeros();
         for (r, c) in self.reactions.iter_mut().zip(&self.constraints.0) {
             let (i, inertia) = (3 * c.node + c.axis, self.masses[c.node] * base[c.axis]);
@@ -178,7 +182,7 @@ impl FrameBuilder {
         // The ground's contact force is a reaction too, at no constrained direction.
         balance += reaction_sum + asm.contact.as_ref().map_or(Vector3::zeros(), |c| c.ground_force());
         let error = balance.norm();
-        let max_force = self.axial.total.iter().fold(0.0_f64, |m, n| m.max(n.abs()));
+        let max_force = forces.iter().fold(0.0_f64, |m, n| m.max(n.abs()));
         let scale = applied_sum.max(reaction_sum.norm()).max(max_force);
         let relative = if scale > 0.0 { error / scale } else { error };
         self.check.max_error = self.check.max_error.max(error);
@@ -195,9 +199,9 @@ impl FrameBuilder {
             step,
             time,
             positions: &asm.x,
-            velocities: motion.map(|_| self.axial.velocities.as_slice()),
-            forces: &self.axial.total,
-            viscous_forces: motion.map(|_| self.axial.viscous.as_slice()),
+            velocities: motion.map(|m| m.axial.velocities.as_slice()),
+            forces,
+            viscous_forces: motion.map(|m| m.axial.viscous.as_slice()),
             lengths: &self.lengths,
             rest_lengths: (self.actuated || motion.is_some_and(|m| m.newmark.is_actuated())).then_some(&asm.rest[..]),
             energy,

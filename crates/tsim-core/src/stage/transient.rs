@@ -233,19 +233,10 @@ impl TransientSummary {
     }
 
     /// Takes in one converged step at stage time `time`, its members' axial forces
-    /// (elastic + viscous) found into `axial`; `load_end` is when the loads stop changing;
+    /// (elastic + viscous) `axial`, found for it; `load_end` is when the loads stop changing;
     /// `loaded` whether some load stays on after that (then the mechanical energy counted
     /// is KE + SE − W, which a constant load leaves conserved).
-    fn add_step(
-        &mut self,
-        nm: &Newmark,
-        axial: &mut AxialForces,
-        time: f64,
-        (load_end, loaded): (f64, bool),
-        dt: f64,
-        mechanical: &mut f64,
-    ) {
-        axial.update(nm);
+    fn add_step(&mut self, nm: &Newmark, axial: &AxialForces, time: f64, (load_end, loaded): (f64, bool), dt: f64, mechanical: &mut f64) {
         let forces = &axial.total;
         let e = nm.energy();
         self.max_kinetic = self.max_kinetic.max(e.kinetic);
@@ -559,6 +550,7 @@ impl<'s, 'r> Stepping<'s, 'r> {
     fn begin(&mut self, nm: &Newmark, recorder: &mut dyn Recorder) -> Result<()> {
         let name = self.stage.stage.name();
         self.frames.begin(recorder, &self.stage.stage).map_err(record_error(name))?;
+        self.axial.update(nm);
         self.record(nm, 0, 0.0, recorder)?;
         self.settle.track(&nm.asm.x, 0.0);
         self.mechanical = mechanical_energy(&nm.energy(), self.load_end.1);
@@ -570,6 +562,7 @@ impl<'s, 'r> Stepping<'s, 'r> {
         stage.applied_load(self.structure, self.dofs, &self.constant, load_time, &mut self.applied);
         let motion = Motion {
             newmark: nm,
+            axial: &self.axial,
             support_acceleration: stage.loads.ground_acceleration(load_time, false),
         };
         self.frames
@@ -589,7 +582,8 @@ impl<'s, 'r> Stepping<'s, 'r> {
         }
         let summary = &mut self.summary;
         summary.add_effort(report, taken.cut);
-        summary.add_step(nm, &mut self.axial, time, self.load_end, taken.dt, &mut self.mechanical);
+        self.axial.update(nm);
+        summary.add_step(nm, &self.axial, time, self.load_end, taken.dt, &mut self.mechanical);
         summary.smallest_step = summary.smallest_step.min(taken.dt);
         summary.largest_step = summary.largest_step.max(taken.dt);
         self.settle.track(&nm.asm.x, time);
