@@ -212,7 +212,7 @@ fn shape(cfg: &CaseConfig, model: &Model, settings: &Settings, recorder: &mut dy
     let start = State::at_rest(model.positions());
     let materials = cfg.materials(model)?;
     let Some(ff) = &cfg.formfinding else {
-        let structure = materials.structure(model, cfg.rest_lengths());
+        let structure = materials.structure(model, cfg.rest_lengths())?;
         let (equilibrium, found) = SelfEquilibrium::GIVEN.run(&structure, start, settings, recorder)?;
         let summary = FormFindSummary::new(&found, &equilibrium, &found.forces);
         let forces = found.forces;
@@ -220,7 +220,12 @@ fn shape(cfg: &CaseConfig, model: &Model, settings: &Settings, recorder: &mut dy
         return Ok((structure, equilibrium, FormFound { stage, summary, forces }));
     };
     let form_find = |recorder: &mut dyn Recorder| {
-        let measure = Structure::massless(model.clone(), ff.measure.elements(model)?);
+        // The measure potentials are per member: clusters slide from substitution on.
+        let unclustered = Model {
+            clusters: Vec::new(),
+            ..model.clone()
+        };
+        let measure = Structure::massless(unclustered, ff.measure.elements(model)?);
         SelfEquilibrium::FORM_FINDING.run(&measure, start, settings, recorder)
     };
     let (shape, found) = form_find(recorder).map_err(|e| explain_failure(model, e))?;

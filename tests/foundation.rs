@@ -404,6 +404,7 @@ fn a_motion_that_moves_no_node_is_not_a_free_rigid_body_motion() {
         ],
         members: (0..3).map(member).collect(),
         node_groups: Default::default(),
+        clusters: Vec::new(),
     };
     assert_eq!(string([true, false, true], [true; 3]).require_supports(&[]), Ok(()));
     let err = string([true, false, false], [true, false, true]).require_supports(&[]).unwrap_err();

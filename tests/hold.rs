@@ -64,6 +64,7 @@ fn series(rest: [f64; 2], span: f64) -> (Structure, State) {
         ],
         members: vec![bar("ab", [0, 1]), bar("bc", [1, 2])],
         node_groups: Default::default(),
+        clusters: Vec::new(),
     };
     let law: Arc<dyn ForceLaw> = Arc::new(LinearElastic {
         ea: 2.0e4,

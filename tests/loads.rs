@@ -98,6 +98,7 @@ fn chain(k: f64, masses: &[f64]) -> Structure {
         nodes,
         members,
         node_groups: BTreeMap::new(),
+        clusters: Vec::new(),
     };
     let law: Arc<dyn ForceLaw> = Arc::new(LinearElastic {
         ea: k,

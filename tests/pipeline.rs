@@ -85,6 +85,7 @@ fn sdof(k: f64, l0: f64, rest_x: f64, x0: f64) -> (Model, Elements) {
             groups: vec![],
         }],
         node_groups: BTreeMap::new(),
+        clusters: Vec::new(),
     };
     let law: Arc<dyn ForceLaw> = Arc::new(LinearElastic {
         ea: k * l0,
@@ -390,6 +391,7 @@ fn string_with_mid_mass_lateral_frequency() {
             },
         ],
         node_groups: BTreeMap::new(),
+        clusters: Vec::new(),
     };
     let law: Arc<dyn ForceLaw> = Arc::new(LinearElastic { ea, tension_only: true });
     let elements = Elements {

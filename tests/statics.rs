@@ -69,6 +69,7 @@ fn hanging_bar_stretches_by_its_weight() {
         ],
         members: vec![bar("bar", [0, 1])],
         node_groups: Default::default(),
+        clusters: Vec::new(),
     };
     let mut structure = Structure::with_lumped_masses(model.clone(), elastic(ea, 1, vec![l0]), &[rho_a], &[0.0, point]);
     structure.gravity = Vector3::new(0.0, 0.0, -g);
@@ -113,6 +114,7 @@ fn von_mises() -> (Structure, f64, f64, f64) {
         ],
         members: vec![bar("l", [0, 2]), bar("r", [1, 2])],
         node_groups: Default::default(),
+        clusters: Vec::new(),
     };
     let l0 = (a * a + h * h).sqrt();
     let structure = Structure::massless(model, elastic(ea, 2, vec![l0, l0]));
@@ -214,6 +216,7 @@ fn folding_under_gravity_tracks_the_pendulum_frequency() {
         ],
         members: vec![bar("bar", [0, 1])],
         node_groups: Default::default(),
+        clusters: Vec::new(),
     };
     let mut structure = Structure::with_lumped_masses(model.clone(), elastic(ea, 1, vec![l0]), &[0.0], &[0.0, mass]);
     structure.gravity = Vector3::new(0.0, 0.0, -g);

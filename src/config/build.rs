@@ -1,6 +1,6 @@
 use super::schema::ModelSpec;
 use crate::model::names::hint;
-use crate::model::{Member, Model, ModelError, Node};
+use crate::model::{Cluster, Member, Model, ModelError, Node};
 use nalgebra::Vector3;
 
 impl ModelSpec {
@@ -60,9 +60,20 @@ impl ModelSpec {
                     nodes,
                     members,
                     node_groups,
+                    clusters: Vec::new(),
                 }
             }
         };
+        let mut model = model;
+        for spec in &self.clusters {
+            let members = spec
+                .members
+                .iter()
+                .map(|id| model.member_set(std::slice::from_ref(id), &[]))
+                .collect::<Result<Vec<_>, _>>()?;
+            let cluster = Cluster::through(&model, &spec.id, members.concat(), &model.clusters)?;
+            model.clusters.push(cluster);
+        }
         model.validate()?;
         Ok(model)
     }
@@ -86,6 +97,16 @@ impl ModelSpec {
             ModelError::DuplicateMember { member: m, other, .. } => member(&[m, other]),
             ModelError::DuplicateNode { node: n } | ModelError::UnusedNode { node: n } => node(n),
             ModelError::UnknownGroupNode { group, .. } => Some(format!("model.groups.{group}")),
+            ModelError::UnknownMember { member: m, .. } => self
+                .clusters
+                .iter()
+                .rposition(|c| c.members.contains(m))
+                .map(|i| format!("model.clusters[{i}]")),
+            ModelError::Cluster { cluster, .. } => self
+                .clusters
+                .iter()
+                .rposition(|c| &c.id == cluster)
+                .map(|i| format!("model.clusters[{i}]")),
             _ => None,
         };
         field.unwrap_or_else(|| "model".into())

@@ -121,6 +121,23 @@ pub struct ModelSpec {
     /// Node groups by name, node ids.
     #[serde(default)]
     pub groups: BTreeMap<String, Vec<String>>,
+    /// Clustered cables: each one cable run through a chain of cable members, sliding
+    /// without friction over the nodes between them (one tension along it). Never written
+    /// when empty, so that earlier `case.yaml` files read as before.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub clusters: Vec<ClusterSpec>,
+}
+
+/// One clustered cable.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ClusterSpec {
+    /// Unique id, as in outputs.
+    pub id: String,
+    /// Member ids in the order the cable runs through them: each shares a node (a pulley)
+    /// with the next; the first and last may share one (a closed loop). Cables only, of one
+    /// material.
+    pub members: Vec<String>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]

@@ -499,6 +499,7 @@ pub(super) mod tests {
             nodes: ["a0", "a1", "b0", "b1"].map(node).into(),
             members: vec![strut("a", 0, 1), strut("b", 2, 3)],
             node_groups: Default::default(),
+            clusters: Vec::new(),
         };
         let r = 0.01;
         let struts = Arc::new(Struts::new(&model, &[r; 2], Search::AllPairs));

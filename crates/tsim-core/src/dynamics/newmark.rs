@@ -1478,6 +1478,7 @@ mod tests {
                 groups: Vec::new(),
             }],
             node_groups: Default::default(),
+            clusters: Vec::new(),
         };
         let elements = Elements {
             laws: vec![Arc::new(LinearElastic { ea, tension_only: true })],

@@ -31,6 +31,11 @@ impl ForceLaw for LinearElastic {
         self.tension_only
     }
 
+    /// N = EA (λ − 1) and U = l0 EA (λ − 1)²/2.
+    fn of_stretch(&self) -> bool {
+        true
+    }
+
     fn energy(&self, l: f64, l0: f64) -> f64 {
         if self.slack(l, l0) {
             return 0.0;

@@ -43,6 +43,12 @@ pub trait ForceLaw: Send + Sync + std::fmt::Debug {
     fn tension_only(&self) -> bool {
         false
     }
+    /// Whether N and U/l0 depend on the stretch l/l0 alone (both real laws; not the
+    /// measure potential): what a clustered cable's members need to share its tension
+    /// (`tsm::cluster`). Default: no.
+    fn of_stretch(&self) -> bool {
+        false
+    }
     /// Whether a member of length `l` is slack: a tension-only law below its rest length.
     fn slack(&self, l: f64, l0: f64) -> bool {
         self.tension_only() && l < l0

@@ -189,6 +189,11 @@ impl ForceLaw for OgdenCord {
         self.tension_only
     }
 
+    /// N = A f(λ) and U = A l0 w(λ).
+    fn of_stretch(&self) -> bool {
+        true
+    }
+
     fn name(&self) -> &'static str {
         if self.tension_only {
             "ogden_cord_tension_only"

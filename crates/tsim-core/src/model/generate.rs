@@ -93,6 +93,7 @@ impl TowerSpec {
             nodes: self.nodes(),
             members: self.members(),
             node_groups: self.node_groups(),
+            clusters: Vec::new(),
         }
     }
 

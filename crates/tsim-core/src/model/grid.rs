@@ -122,6 +122,7 @@ impl GridSpec {
             nodes,
             members: self.members(),
             node_groups,
+            clusters: Vec::new(),
         };
         let z_supported = match self.supports {
             GridSupports::Corners => "corners",

@@ -4,6 +4,7 @@
 //! stage of a sweep.
 
 pub mod clearance;
+mod cluster;
 pub mod generate;
 pub mod grid;
 pub mod names;
@@ -12,6 +13,7 @@ mod validate;
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
 
+pub use cluster::Cluster;
 pub use validate::ModelError;
 
 /// The three coordinate directions, for DOF labels and support flags.
@@ -70,6 +72,9 @@ pub struct Model {
     pub members: Vec<Member>,
     /// Named node groups (`base`, `middle`, `top`, ...), node indices in order.
     pub node_groups: BTreeMap<String, Vec<usize>>,
+    /// Clustered cables: chains of cable members that one cable runs through, sliding
+    /// over the nodes between them (empty: every member on its own).
+    pub clusters: Vec<Cluster>,
 }
 
 impl Model {

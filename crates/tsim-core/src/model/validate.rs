@@ -104,6 +104,14 @@ pub enum ModelError {
     /// A member selection that names neither member ids nor member groups.
     #[error("names no member: give `members` (member ids) or `groups` (member groups)")]
     EmptyMemberSet,
+    /// A clustered cable that cannot be built as given.
+    #[error("cluster `{cluster}`: {reason}")]
+    Cluster {
+        /// The cluster's id.
+        cluster: String,
+        /// What is wrong and the fix.
+        reason: String,
+    },
     /// The supports leave a rigid-body motion of the whole model unrestrained (named where a
     /// static stage fails on it).
     #[error("the supports leave rigid-body motion free ({motion}), and a static solve has an equilibrium only where the load holds that motion (eigen and transient stages run without supports); support more directions, e.g. fix x and y of one base node and one more in-plane direction of another")]

@@ -64,6 +64,7 @@ fn x_module() -> Model {
             member("bd", [1, 3], MemberKind::Strut),
         ],
         node_groups: Default::default(),
+        clusters: Vec::new(),
     }
 }
 

@@ -206,6 +206,7 @@ mod tests {
                 member("ca", [2, 0], MemberKind::Cable),
             ],
             node_groups: Default::default(),
+            clusters: Vec::new(),
         };
         let text = explain_failure(&model, failure()).to_string();
         assert!(text.starts_with("form-finding: did not converge; this layout has s = 0"), "{text}");

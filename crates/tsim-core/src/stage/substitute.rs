@@ -31,24 +31,89 @@ pub struct Materials {
 
 impl Materials {
     /// The real structure with `rest` lengths, masses lumped from the members, its
-    /// struts' clearance followed.
-    pub fn structure(&self, model: &Model, rest: Vec<f64>) -> Structure {
+    /// struts' clearance followed; an error where a clustered cable's members differ in
+    /// material or have a law that cannot share one tension ([`check_clusters`]).
+    pub fn structure(&self, model: &Model, rest: Vec<f64>) -> Result<Structure> {
+        check_clusters(model, &self.laws)?;
         let elements = Elements {
             laws: self.laws.clone(),
             rest,
         };
-        Structure {
+        Ok(Structure {
             struts: Some(Arc::new(Struts::new(model, &self.radius, Search::Auto))),
             ..Structure::with_lumped_masses(model.clone(), elements, &self.linear_density, &self.point_masses)
-        }
+        })
     }
 
     /// Substitution: the real structure that carries `scale` × the form-found `forces`
     /// (balanced, see [`balanced_forces`]) in the form-found shape `found`.
     pub fn substitute(&self, model: &Model, found: &State, forces: &[f64], scale: f64) -> Result<Structure> {
-        let sub = substitute(model, &found.positions, forces, self.laws.clone(), scale)?;
-        Ok(self.structure(model, sub.elements.rest))
+        check_clusters(model, &self.laws)?;
+        let forces = cluster_tensions(model, forces)?;
+        let sub = substitute(model, &found.positions, &forces, self.laws.clone(), scale)?;
+        self.structure(model, sub.elements.rest)
     }
+}
+
+/// A clustered cable's members must have one material, of a law of the stretch alone
+/// (`tsm::cluster`): the error names the member that does not.
+pub fn check_clusters(model: &Model, laws: &[Arc<dyn ForceLaw>]) -> Result<()> {
+    for c in &model.clusters {
+        let first = &laws[c.members[0]];
+        for &m in &c.members {
+            let reason = if !Arc::ptr_eq(&laws[m], first) {
+                format!(
+                    "in cluster `{}` it has another material than `{}`; one cable is one material, assign the same to all its members",
+                    c.id, model.members[c.members[0]].id
+                )
+            } else if !laws[m].of_stretch() {
+                format!("in cluster `{}` its {} law is not a law of the stretch l/l0, so the cable's members cannot share one tension; use an elastic or Ogden material", c.id, laws[m].name())
+            } else {
+                continue;
+            };
+            return Err(Error::Substitution {
+                member: model.members[m].id.clone(),
+                reason,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The form-found `forces` with each clustered cable's members given their mean, or the
+/// error where they differ by more than 1e-6 of the largest: a cable that slides freely
+/// carries one tension, so a layout whose form-found members in it do not is not in
+/// equilibrium clustered (a converged form-finding's forces are balanced to ~1e-10 of the
+/// force level, far inside this).
+pub fn cluster_tensions(model: &Model, forces: &[f64]) -> Result<Vec<f64>> {
+    let mut out = forces.to_vec();
+    for c in &model.clusters {
+        let of = |m: &usize| forces[*m];
+        let (lo, hi) = c
+            .members
+            .iter()
+            .map(of)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), f| (a.min(f), b.max(f)));
+        if hi - lo > 1e-6 * lo.abs().max(hi.abs()) {
+            let at = |f: f64| {
+                c.members
+                    .iter()
+                    .find(|m| of(m) == f)
+                    .map_or(String::new(), |&m| model.members[m].id.clone())
+            };
+            return Err(Error::Substitution {
+                member: at(lo),
+                reason: format!(
+                    "cluster `{}` slides freely, so all its members carry one tension, but the form-found forces differ ({lo:.6e} N here, {hi:.6e} N in `{}`); cluster only cables of one form-found force (one member group of a symmetric layout), or leave them separate",
+                    c.id,
+                    at(hi)
+                ),
+            });
+        }
+        let mean = c.members.iter().map(of).sum::<f64>() / c.members.len() as f64;
+        c.members.iter().for_each(|&m| out[m] = mean);
+    }
+    Ok(out)
 }
 
 /// How the real structure stands in its equilibrium shape.

@@ -308,6 +308,12 @@ impl Transient {
     ) -> Result<(State, TransientSummary)> {
         let name = self.stage.name();
         let model = &structure.model;
+        if let Some(reason) = self.cluster_limit(model) {
+            return Err(Error::Stage {
+                stage: name.into(),
+                reason,
+            });
+        }
         let dofs = DofMap::new(model, &[]);
         let state = self.initial.apply(model, state).map_err(|reason| Error::Stage {
             stage: name.into(),
@@ -332,6 +338,22 @@ impl Transient {
         let mut summary = run.finish(&nm);
         summary.wall_seconds = started.elapsed().as_secs_f64();
         Ok((final_state(&nm, &dofs, rest_lengths), summary))
+    }
+
+    /// Why this stage cannot run `model`'s clustered cables yet, if it cannot: their
+    /// viscous force (β of one extension rate along the whole cable) and their force over a
+    /// step in energy–momentum form are not written (`tsm::cluster`).
+    fn cluster_limit(&self, model: &Model) -> Option<String> {
+        let cluster = &model.clusters.first()?.id;
+        if self.rayleigh.beta != 0.0 {
+            Some(format!("the clustered cable `{cluster}` has no stiffness-proportional damping yet; damp with α only (an eigen stage's `rayleigh: {{alpha: …, beta: 0}}`), or split the cable into separate members"))
+        } else if self.params.scheme == crate::dynamics::Scheme::EnergyMomentum {
+            Some(format!(
+                "the clustered cable `{cluster}` has no energy–momentum form yet; use `scheme: midpoint` or `newmark`"
+            ))
+        } else {
+            None
+        }
     }
 
     /// Steps of `params.dt`, duration/dt of them (rounded), their times on that grid.

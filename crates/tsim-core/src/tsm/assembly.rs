@@ -17,7 +17,8 @@ pub struct Assembly<'a> {
     /// Numbering of the free DOFs that Newton's iterate and tangent use.
     pub dofs: &'a DofMap,
     /// The rest length each member is evaluated with [m]: the elements' own, or those a
-    /// stage sets as it changes them in time ([`Self::set_rest`]).
+    /// stage sets as it changes them in time ([`Self::set_rest`]); over a clustered cable's
+    /// members, shared out at `x` ([`super::cluster::distribute`]).
     pub rest: Vec<f64>,
     /// Positions of every node [m], global frame.
     pub x: Vec<Vector3<f64>>,
@@ -89,6 +90,7 @@ impl<'a> Assembly<'a> {
             *r = x.amax();
         }
         self.p.fill(0.0);
+        super::cluster::distribute(self.model, &self.x, &mut self.rest);
         let members = &self.model.members;
         self.states.resize(members.len(), MemberState::default());
         let (mut force, mut stiff) = (0.0_f64, 0.0_f64);

@@ -9,6 +9,7 @@
 //! the law's stiffness.
 
 mod assembly;
+pub mod cluster;
 mod damping;
 mod dofs;
 mod energy_momentum;
@@ -40,12 +41,24 @@ pub struct Elements {
 impl Elements {
     /// Strain energy of all members at positions `x` [J].
     pub fn strain_energy(&self, model: &Model, x: &[Vector3<f64>]) -> f64 {
+        let rest = self.rest_at(model, x);
         model
             .members
             .iter()
             .enumerate()
-            .map(|(m, mem)| self.laws[m].energy((x[mem.nodes[1]] - x[mem.nodes[0]]).norm(), self.rest[m]))
+            .map(|(m, mem)| self.laws[m].energy((x[mem.nodes[1]] - x[mem.nodes[0]]).norm(), rest[m]))
             .sum()
+    }
+
+    /// The rest length each member is evaluated with at positions `x`: its own, but shared
+    /// out over each clustered cable's members ([`cluster::distribute`]).
+    pub fn rest_at(&self, model: &Model, x: &[Vector3<f64>]) -> std::borrow::Cow<'_, [f64]> {
+        if model.clusters.is_empty() {
+            return std::borrow::Cow::Borrowed(&self.rest);
+        }
+        let mut rest = self.rest.clone();
+        cluster::distribute(model, x, &mut rest);
+        std::borrow::Cow::Owned(rest)
     }
 }
 
@@ -68,10 +81,11 @@ pub use crate::solve::TangentSink;
 
 /// Evaluates every member at positions `x` into `states` (reused buffer).
 pub fn member_states(model: &Model, elements: &Elements, x: &[Vector3<f64>], states: &mut Vec<MemberState>) {
+    let rest = elements.rest_at(model, x);
     states.clear();
     states.extend(model.members.iter().enumerate().map(|(m, mem)| {
         let [a, b] = mem.nodes;
-        MemberState::between(x[a], x[b], &*elements.laws[m], elements.rest[m])
+        MemberState::between(x[a], x[b], &*elements.laws[m], rest[m])
     }));
 }
 
@@ -112,6 +126,7 @@ pub fn assemble_tangents(model: &Model, dofs: &DofMap, terms: &[(&[MemberState],
             .fold(Matrix3::zeros(), |k, (states, factor)| k + member_block(&states[e]) * *factor);
         add_member_block(dofs, e, mem.nodes, &k, sink);
     }
+    cluster::add_sliding(model, dofs, terms, sink);
 }
 
 /// Adds member `e`'s 6×6 block [[k, −k], [−k, k]] (k the block on its relative position)
@@ -121,19 +136,19 @@ pub fn add_member_block(dofs: &DofMap, e: usize, [a, b]: [usize; 2], k: &Matrix3
 }
 
 /// K_T's shape for the sparse solver: every (row, column) of free DOFs it can fill (the
-/// DOFs of each member's two nodes, pairwise), eliminated node by node in a nested
+/// DOFs of each member's two nodes, pairwise, and of every two nodes of a clustered cable), eliminated node by node in a nested
 /// dissection of the model's nominal geometry ([`nested_dissection`]).
 pub fn tangent_sparsity<'a>(model: &'a Model, dofs: &'a DofMap) -> Sparsity<impl Iterator<Item = (usize, usize)> + 'a> {
     let free = move |n: usize| (0..3).filter_map(move |a| dofs.free(n, a));
-    let entries = model.members.iter().flat_map(move |mem| {
-        let free: Vec<usize> = mem.nodes.iter().flat_map(|&n| free(n)).collect();
+    let pairs = move || model.members.iter().map(|m| m.nodes).chain(cluster::coupled_nodes(model));
+    let entries = pairs().flat_map(move |nodes| {
+        let free: Vec<usize> = nodes.iter().flat_map(|&n| free(n)).collect();
         free.iter().flat_map(|&r| free.iter().map(move |&c| (r, c))).collect::<Vec<_>>()
     });
     // The matrix's graph at node level: a node without free DOFs couples nothing.
     let mut neighbours = vec![Vec::new(); model.node_count()];
-    for m in &model.members {
-        let [a, b] = m.nodes;
-        if free(a).next().is_some() && free(b).next().is_some() {
+    for [a, b] in pairs() {
+        if a != b && free(a).next().is_some() && free(b).next().is_some() {
             neighbours[a].push(b);
             neighbours[b].push(a);
         }

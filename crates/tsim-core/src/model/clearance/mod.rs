@@ -362,6 +362,7 @@ mod tests {
             ],
             members: vec![strut("ab", 0, 1), strut("bc", 1, 2), strut("de", 3, 4)],
             node_groups: Default::default(),
+            clusters: Vec::new(),
         };
         for search in [Search::AllPairs, Search::Grid] {
             let struts = Struts::new(&model, &[0.01; 3], search);

@@ -272,6 +272,7 @@ mod tests {
             nodes: vec![node("a0"), node("a1"), node("b0"), node("b1")],
             members: vec![strut("a", [0, 1]), strut("b", [2, 3])],
             node_groups: Default::default(),
+            clusters: Vec::new(),
         };
         Arc::new(Struts::new(&model, &[0.01, 0.01], search))
     }

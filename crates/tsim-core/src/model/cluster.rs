@@ -1,0 +1,104 @@
+//! Clustered cables, as topology: one continuous cable run through a chain of cable
+//! members, sliding without friction over the nodes between them (pulleys). The mechanics
+//! (one tension along the cable, its tangent) are in `tsm::cluster`.
+
+use super::{MemberKind, Model, ModelError};
+
+/// A cable through the members `members`, in the order it runs: each shares a node with the
+/// next, and that node is a pulley the cable slides over.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cluster {
+    /// Unique id, as in config and outputs.
+    pub id: String,
+    /// Indices into [`Model::members`], in the cable's order.
+    pub members: Vec<usize>,
+    /// The nodes the cable passes, from one end to the other (`members.len() + 1` of them;
+    /// first = last for a closed loop): `nodes[j + 1]` joins `members[j]` and
+    /// `members[j + 1]`.
+    pub nodes: Vec<usize>,
+}
+
+impl Cluster {
+    /// The cable `id` through `members` of `model` (indices, in order), or the error naming
+    /// what is wrong: fewer than two members, a strut, a member in another cluster of
+    /// `earlier`, or two members in a row that share no node.
+    pub fn through(model: &Model, id: &str, members: Vec<usize>, earlier: &[Cluster]) -> Result<Cluster, ModelError> {
+        let name = |m: usize| model.members[m].id.clone();
+        let error = |reason: String| ModelError::Cluster {
+            cluster: id.to_string(),
+            reason,
+        };
+        if members.len() < 2 {
+            return Err(error(
+                "a clustered cable runs through at least two members; a single member is an ordinary cable".into(),
+            ));
+        }
+        if let Some(c) = earlier.iter().find(|c| c.id == id) {
+            return Err(error(format!(
+                "the id is used twice (clusters `{}`); give every cluster a unique id",
+                c.id
+            )));
+        }
+        for (k, &m) in members.iter().enumerate() {
+            if model.members[m].kind != MemberKind::Cable {
+                return Err(error(format!("member `{}` is a strut; only cables slide over nodes", name(m))));
+            }
+            if members[..k].contains(&m) {
+                return Err(error(format!("member `{}` is listed twice", name(m))));
+            }
+            if let Some(c) = earlier.iter().find(|c| c.members.contains(&m)) {
+                return Err(error(format!(
+                    "member `{}` is already in cluster `{}`; a member belongs to one cable",
+                    name(m),
+                    c.id
+                )));
+            }
+        }
+        let nodes = chain(model, &members).ok_or_else(|| {
+            let k = (1..members.len()).find(|&k| shared(model, members[k - 1], members[k]).is_none());
+            let k = k.unwrap_or(1);
+            error(format!(
+                "members `{}` and `{}` follow each other in the list but share no node (or the chain turns back on itself); list the members in the order the cable runs",
+                name(members[k - 1]),
+                name(members[k])
+            ))
+        })?;
+        Ok(Cluster {
+            id: id.to_string(),
+            members,
+            nodes,
+        })
+    }
+
+    /// The pulley nodes: every node the cable passes between two of its members (for a
+    /// closed loop, its first node too).
+    pub fn pulleys(&self) -> &[usize] {
+        let closed = self.nodes.first() == self.nodes.last();
+        &self.nodes[usize::from(!closed)..self.nodes.len() - 1]
+    }
+}
+
+/// The node members `a` and `b` share, if one.
+fn shared(model: &Model, a: usize, b: usize) -> Option<usize> {
+    let [a0, a1] = model.members[a].nodes;
+    model.members[b].nodes.into_iter().find(|&n| n == a0 || n == a1)
+}
+
+/// The nodes a cable through `members` passes in order, if each member continues from the
+/// end the one before it reached.
+fn chain(model: &Model, members: &[usize]) -> Option<Vec<usize>> {
+    let [a, b] = model.members[members[0]].nodes;
+    // Start at the end of the first member that the second one does not touch.
+    let first = if shared(model, members[0], members[1]) == Some(a) { b } else { a };
+    let mut nodes = vec![first];
+    for &m in members {
+        let [p, q] = model.members[m].nodes;
+        let at = *nodes.last()?;
+        nodes.push(match at {
+            _ if at == p => q,
+            _ if at == q => p,
+            _ => return None,
+        });
+    }
+    Some(nodes)
+}
