@@ -251,8 +251,9 @@ pub struct StageLayout {
     /// The directions the stage holds fixed: the supports, and for folding the
     /// prescribed directions.
     pub constraints: Constraints,
-    /// The stage changes rest lengths in time: its frames carry [`Frame::rest_lengths`],
-    /// and its outputs record them and the actuators' work.
+    /// The stage changes rest lengths in time (actuators, or the slip of clustered cables):
+    /// its frames carry [`Frame::rest_lengths`], and its outputs record them and the
+    /// actuators' work.
     pub actuated: bool,
     /// How many of the lowest modes the stage records at every step (0: none).
     pub path_modes: usize,
@@ -262,12 +263,12 @@ pub struct StageLayout {
 }
 
 impl StageLayout {
-    /// A stage that holds the supports only, changes no rest length and records no modes.
+    /// A stage that holds the supports only, has no actuators and records no modes.
     pub fn plain(model: &Model, stage: Stage) -> Self {
         StageLayout {
             stage,
             constraints: Constraints::new(model, &[]),
-            actuated: false,
+            actuated: !model.clusters.is_empty(),
             path_modes: 0,
             placeholder: false,
         }

@@ -48,8 +48,9 @@ pub struct FrameBuilder {
     pub modes: Option<(Vec<f64>, Vec<Vector3<f64>>)>,
     /// Follows the struts' clearance (`None`: not followed).
     clearance: Option<Tracker>,
-    /// A static stage that changes rest lengths: its frames carry them (a transient's
-    /// carry them when its Newmark run is actuated).
+    /// A static stage that changes rest lengths, or any stage of a structure with clustered
+    /// cables (their slip shares the rest lengths out anew at every step): its frames
+    /// carry them (a transient's carry them when its Newmark run is actuated).
     pub actuated: bool,
 }
 
@@ -101,7 +102,7 @@ impl FrameBuilder {
             check: EquilibriumCheck::default(),
             modes: None,
             clearance: structure.struts.clone().map(Tracker::new),
-            actuated: false,
+            actuated: !structure.model.clusters.is_empty(),
         }
     }
 

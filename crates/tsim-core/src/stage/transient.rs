@@ -59,9 +59,10 @@ impl SequenceStage for PlannedTransient {
     }
 
     fn layout(&self, model: &Model) -> StageLayout {
+        let plain = StageLayout::plain(model, self.stage.stage.clone());
         StageLayout {
-            actuated: !self.stage.actuators.is_empty(),
-            ..StageLayout::plain(model, self.stage.stage.clone())
+            actuated: plain.actuated || !self.stage.actuators.is_empty(),
+            ..plain
         }
     }
 
