@@ -350,3 +350,47 @@ fn clustered_and_split_prisms_share_their_equilibrium() {
         split.omega2
     );
 }
+
+/// The equilibrium-matrix analysis with clustering (A S, S the members' incidence on the
+/// independent tensions): the prism of prism_cluster.yaml has b = 12 members and
+/// n_f = 12 free DOFs, one self-stress and one internal mechanism (the twist); with its top
+/// ring one loop it has 10 tensions, and Maxwell's rule s − m = b − n_f gives m = 3 for the
+/// same s = 1: the loop slides two ways more. The self-stress is the same state, one
+/// tension round the loop, and the prism stays prestress stable.
+#[test]
+fn clustering_counts_in_the_equilibrium_matrix() {
+    let text = std::fs::read_to_string(PRISM).unwrap();
+    let cfg = tsim::config::parse_case(&text, PRISM).unwrap_or_else(|e| panic!("{e}"));
+    let model = cfg.model.build().unwrap();
+    let x = model.positions();
+    let unclustered = Model {
+        clusters: Vec::new(),
+        ..model.clone()
+    };
+    let plain = tsim::rigidity::analyse(&unclustered, &x, None).unwrap();
+    assert_eq!((plain.s, plain.m, plain.rigid_body_modes), (1, 1, 0));
+    // The state's prestress, one tension round the loop: the coordinates are given to 12
+    // digits, so it balances to ~1e-13 there, which sets the rank tolerance (10 ‖A t‖/‖t‖)
+    // as it does for a converged state in a run.
+    let mut prestress = plain.proper_self_stress.clone().expect("a proper self-stress");
+    let ring = model.clusters[0].members.clone();
+    let mean = ring.iter().map(|&m| prestress[m]).sum::<f64>() / 3.0;
+    ring.iter().for_each(|&m| prestress[m] = mean);
+    let clustered = tsim::rigidity::analyse(&model, &x, Some(&prestress)).unwrap();
+    assert_eq!((clustered.s, clustered.m, clustered.rigid_body_modes), (1, 3, 0));
+    let t = clustered.proper_self_stress.expect("a proper self-stress");
+    let u = plain.proper_self_stress.unwrap();
+    eprintln!(
+        "clustered prism: s = {}, m = {}; Q on its mechanisms {:?} N/m",
+        clustered.s, clustered.m, clustered.stability.mechanism_stiffness
+    );
+    assert!(
+        ring.iter().all(|&m| (t[m] - t[ring[0]]).abs() < 1e-12),
+        "one tension round the loop: {t:?}"
+    );
+    assert!(
+        t.iter().zip(&u).all(|(a, b)| (a - b).abs() < 1e-9),
+        "the same state: {t:?} against {u:?}"
+    );
+    assert!(clustered.stability.prestress_stable && !clustered.stability.super_stable);
+}

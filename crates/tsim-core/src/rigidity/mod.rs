@@ -57,7 +57,8 @@ pub struct Rigidity {
     pub tolerance: f64,
     /// Rank r of A.
     pub rank: usize,
-    /// Independent self-stress states, s = b − r.
+    /// Independent self-stress states, s = b − r (b: independent tensions, a clustered
+    /// cable one).
     pub s: usize,
     /// Infinitesimal mechanisms, m = n_f − r, rigid-body motions the supports allow included.
     pub m: usize,
@@ -143,12 +144,16 @@ pub fn analyse(model: &Model, x: &[Vector3<f64>], prestress: Option<&[f64]>) -> 
         return Err(RigidityError::TooLarge { dofs: n, members: b });
     }
     let a = equilibrium_matrix(model, &dofs, x)?;
+    let prestress_residual = prestress.map_or(0.0, |t| relative_residual(&a, t));
+    // A clustered cable has one tension: its members' columns act as one.
+    let tensions = Tensions::of(model);
+    let a = tensions.columns(&a);
+    let b = a.ncols();
     let svd = a.svd().map_err(|e| RigidityError::Svd(format!("{e:?}")))?;
     let singular_values: Vec<f64> = (0..n.min(b)).map(|i| svd.S()[i]).collect();
-    let prestress_residual = prestress.map_or(0.0, |t| relative_residual(&a, t));
     let tolerance = rank_tolerance(&singular_values, n, b, prestress_residual);
     let rank = singular_values.iter().take_while(|&&sv| sv > tolerance).count();
-    let self_stress = svd.V().subcols(rank, b - rank).to_owned();
+    let self_stress = tensions.member_basis(svd.V().subcols(rank, b - rank).to_owned());
     let all_mechanisms = svd.U().subcols(rank, n - rank).to_owned();
     let rigid = rigid_motions(model, &dofs, x);
     let internal = complement(&all_mechanisms, &rigid);
@@ -194,6 +199,53 @@ pub fn equilibrium_matrix(model: &Model, dofs: &DofMap, x: &[Vector3<f64>]) -> R
         }
     }
     Ok(a)
+}
+
+/// The independent tensions of a model: one per clustered cable, one per other member
+/// (`tension[m]`: member m's). With clusters the equilibrium matrix is A S, S the members'
+/// incidence on the tensions (Moored & Bart-Smith 2009, clustered tensegrity), so s and m
+/// count the cables' sliding.
+struct Tensions {
+    of_member: Vec<usize>,
+    count: usize,
+}
+
+impl Tensions {
+    fn of(model: &Model) -> Self {
+        let mut of_member = vec![usize::MAX; model.members.len()];
+        for (k, c) in model.clusters.iter().enumerate() {
+            c.members.iter().for_each(|&m| of_member[m] = k);
+        }
+        let mut count = model.clusters.len();
+        for t in of_member.iter_mut().filter(|t| **t == usize::MAX) {
+            *t = count;
+            count += 1;
+        }
+        Tensions { of_member, count }
+    }
+
+    /// A S: the columns of a cluster's members summed (A itself without clusters).
+    fn columns(&self, a: &Mat<f64>) -> Mat<f64> {
+        if self.count == a.ncols() {
+            return a.clone();
+        }
+        let mut out = Mat::zeros(a.nrows(), self.count);
+        for (m, &t) in self.of_member.iter().enumerate() {
+            for i in 0..a.nrows() {
+                out[(i, t)] += a[(i, m)];
+            }
+        }
+        out
+    }
+
+    /// An orthonormal basis of member forces S V from one `v` of tensions (`v` itself
+    /// without clusters).
+    fn member_basis(&self, v: Mat<f64>) -> Mat<f64> {
+        if self.count == self.of_member.len() {
+            return v;
+        }
+        range(&Mat::from_fn(self.of_member.len(), v.ncols(), |m, k| v[(self.of_member[m], k)]))
+    }
 }
 
 /// ‖A t‖ / ‖t‖: how far member forces t are from a self-stress (dimensionless, A's
