@@ -394,3 +394,109 @@ fn clustering_counts_in_the_equilibrium_matrix() {
     );
     assert!(clustered.stability.prestress_stable && !clustered.stability.super_stable);
 }
+
+/// The objective damping of the zigzag cable at velocities `v` and its step Jacobian.
+struct Damped {
+    model: Model,
+    elements: Elements,
+    dofs: DofMap,
+}
+
+impl Damped {
+    /// The zigzag with no supports: a rigid motion moves every node.
+    fn new(law: Arc<dyn ForceLaw>) -> (Self, Vec<Vector3<f64>>) {
+        let (mut model, elements, x) = zigzag(law);
+        model.nodes.iter_mut().for_each(|n| n.support = [false; 3]);
+        let dofs = DofMap::new(&model, &[]);
+        (Damped { model, elements, dofs }, x)
+    }
+
+    /// The damping force on the free DOFs at positions `x`, velocities `v`, β = 0.01 s,
+    /// every member taut.
+    fn force(&self, x: &[Vector3<f64>], v: &[f64]) -> Vec<f64> {
+        let asm = Assembly::new(&self.model, &self.elements, &self.dofs, x.to_vec());
+        let mut out = vec![0.0; v.len()];
+        self.with(&asm, v, |d| d.add_force(&mut out));
+        out
+    }
+
+    fn with(&self, asm: &Assembly, v: &[f64], f: impl FnOnce(&tsim::tsm::ObjectiveDamping)) {
+        let n = self.model.members.len();
+        let mut moduli = vec![tsim::tsm::DampingModulus::default(); n];
+        tsim::tsm::damping_moduli(&self.elements.laws, &asm.rest, &asm.states, &vec![true; n], &mut moduli);
+        f(&tsim::tsm::ObjectiveDamping {
+            model: &self.model,
+            dofs: &self.dofs,
+            states: &asm.states,
+            moduli: &moduli,
+            v,
+            beta: 0.01,
+            rest_rate: &[],
+        });
+    }
+}
+
+/// A rigid motion of a clustered cable, and a slide of it over its pulleys at constant
+/// length, damp nothing: objective damping acts on the cable's extension rate L̇ alone
+/// (its members' own rates would damp the slide: β k_i l̇_i ≠ 0 where the members trade
+/// length). 1e-12 of the force the same speeds give when they stretch the cable.
+#[test]
+fn cluster_damping_ignores_rigid_motion_and_free_slide() {
+    let (d, x) = Damped::new(laws()[0].1.clone());
+    let free: Vec<(usize, usize)> = (0..d.dofs.len()).map(|i| d.dofs.owner(i)).collect();
+    let field = |f: &dyn Fn(Vector3<f64>) -> Vector3<f64>| -> Vec<f64> { free.iter().map(|&(n, a)| f(x[n])[a]).collect() };
+    let (c, w) = (Vector3::new(0.3, -0.2, 0.5), Vector3::new(0.7, 0.1, -0.4));
+    let rigid = field(&|p| c + w.cross(&p));
+    // Move p2 alone normal to ∂L/∂x_p2 (L̇ = g_p2 · v = 0: the cable's members trade
+    // length) and to its spring k2 (which stays as long).
+    let asm = Assembly::new(&d.model, &d.elements, &d.dofs, x.clone());
+    let g = tsim::tsm::cluster::length_gradient(&d.model, &d.model.clusters[0], &asm.states);
+    let gp2 = g.iter().find(|(n, _)| *n == 2).unwrap().1;
+    let along = gp2.cross(&asm.states[5].dir).normalize();
+    let slide: Vec<f64> = free.iter().map(|&(n, a)| if n == 2 { along[a] } else { 0.0 }).collect();
+    let stretch: Vec<f64> = free.iter().map(|&(n, a)| if n == 2 { gp2.normalize()[a] } else { 0.0 }).collect();
+    let norm = |f: &[f64]| f.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let reference = norm(&d.force(&x, &stretch));
+    assert!(reference > 1.0, "stretching is damped: {reference} N");
+    for (name, v) in [("rigid", &rigid), ("slide", &slide)] {
+        let f = norm(&d.force(&x, v));
+        assert!(f < 1e-12 * reference, "{name}: damping force {f:e} N against {reference:e} N stretching");
+    }
+    // The members' own tensions' rates do differ on the slide: the test is not trivial.
+    let rates: Vec<f64> = (0..4).map(|m| asm.states[m].dir.dot(&(if d.model.members[m].nodes.contains(&2) { along } else { Vector3::zeros() } * if d.model.members[m].nodes[1] == 2 { 1.0 } else { -1.0 }))).collect();
+    assert!(rates.iter().any(|r| r.abs() > 0.1), "the slide lengthens a member: {rates:?}");
+}
+
+/// The Newmark Jacobian of a clustered cable's damping force (velocities following the
+/// coordinates as v = c_v u + const) against central differences, for both laws, with
+/// the cable stretching and turning: 1e-7 of the largest entry (as for K_T above).
+#[test]
+fn cluster_damping_jacobian_is_its_derivative() {
+    for (name, law) in laws() {
+        let (d, x) = Damped::new(law);
+        let n = d.dofs.len();
+        let v: Vec<f64> = (0..n).map(|i| 0.3 * (1.7 * i as f64).sin()).collect();
+        let c_v = 400.0;
+        let asm = Assembly::new(&d.model, &d.elements, &d.dofs, x.clone());
+        let mut k = Dense(vec![vec![0.0; n]; n]);
+        d.with(&asm, &v, |dmp| dmp.add_jacobian(c_v, false, &mut k));
+        let h = 1e-7;
+        let at = |j: usize, s: f64| {
+            let mut xs = x.clone();
+            let (node, a) = d.dofs.owner(j);
+            xs[node][a] += s * h;
+            let mut vs = v.clone();
+            vs[j] += s * c_v * h;
+            d.force(&xs, &vs)
+        };
+        let scale = k.0.iter().flatten().fold(0.0_f64, |s, e| s.max(e.abs()));
+        let mut worst = 0.0_f64;
+        for j in 0..n {
+            let (plus, minus) = (at(j, 1.0), at(j, -1.0));
+            for i in 0..n {
+                worst = worst.max(((plus[i] - minus[i]) / (2.0 * h) - k.0[i][j]).abs() / scale);
+            }
+        }
+        assert!(worst < 1e-7, "{name}: damping Jacobian against differences: {worst:.2e} of the largest entry {scale:.3e}");
+    }
+}

@@ -78,6 +78,25 @@ impl Cluster {
     }
 }
 
+impl Model {
+    /// Checks that actuators changing the rest lengths of the member `sets` change each
+    /// clustered cable as a whole (one set holds all its members or none): a cable's rest
+    /// length is one length, which its members only share out.
+    pub fn check_cluster_actuation<'a>(&self, mut sets: impl Iterator<Item = &'a [usize]>) -> Result<(), String> {
+        sets.try_for_each(|set| match self.clusters.iter().find(|c| c.members.iter().any(|m| set.contains(m)) && !c.members.iter().all(|m| set.contains(m))) {
+            None => Ok(()),
+            Some(c) => {
+                let ids: Vec<&str> = c.members.iter().map(|&m| self.members[m].id.as_str()).collect();
+                Err(format!(
+                    "an actuator changes part of the clustered cable `{}`; a cable has one rest length: actuate all its members together ({})",
+                    c.id,
+                    ids.join(", ")
+                ))
+            }
+        })
+    }
+}
+
 /// The node members `a` and `b` share, if one.
 fn shared(model: &Model, a: usize, b: usize) -> Option<usize> {
     let [a0, a1] = model.members[a].nodes;

@@ -164,6 +164,11 @@ impl Model {
         Ok(set)
     }
 
+    /// The clustered cable member `m` belongs to, if any.
+    pub fn cluster_of(&self, m: usize) -> Option<&Cluster> {
+        self.clusters.iter().find(|c| c.members.contains(&m))
+    }
+
     /// Largest distance between two nodes' bounding-box corners: the model's length scale.
     pub fn size(&self) -> f64 {
         let mut lo = Vector3::repeat(f64::INFINITY);

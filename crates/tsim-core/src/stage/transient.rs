@@ -341,17 +341,14 @@ impl Transient {
         Ok((final_state(&nm, &dofs, rest_lengths), summary))
     }
 
-    /// Why this stage cannot run `model`'s clustered cables yet, if it cannot: their
-    /// viscous force (β of one extension rate along the whole cable) and their force over a
-    /// step in energy–momentum form are not written (`tsm::cluster`).
+    /// Why this stage cannot run `model`'s clustered cables, if it cannot: an actuator on
+    /// part of one, or the energy–momentum form, not written for them (`tsm::cluster`).
     fn cluster_limit(&self, model: &Model) -> Option<String> {
         let cluster = &model.clusters.first()?.id;
-        if self.rayleigh.beta != 0.0 {
-            Some(format!("the clustered cable `{cluster}` has no stiffness-proportional damping yet; damp with α only (an eigen stage's `rayleigh: {{alpha: …, beta: 0}}`), or split the cable into separate members"))
+        if let Err(reason) = model.check_cluster_actuation(self.actuators.iter().map(|a| a.members.as_slice())) {
+            Some(reason)
         } else if self.params.scheme == crate::dynamics::Scheme::EnergyMomentum {
-            Some(format!(
-                "the clustered cable `{cluster}` has no energy–momentum form yet; use `scheme: midpoint` or `newmark`"
-            ))
+            Some(format!("the clustered cable `{cluster}` has no energy–momentum form yet; use `scheme: midpoint` or `newmark`"))
         } else {
             None
         }

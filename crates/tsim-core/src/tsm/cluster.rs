@@ -46,6 +46,12 @@ pub fn series_stiffness(c: &Cluster, states: &[MemberState]) -> f64 {
 
 /// L's gradient over the cable's distinct nodes: Σ_i B_iᵀ J_i, as (node, 3-vector) pairs.
 pub fn length_gradient(model: &Model, c: &Cluster, states: &[MemberState]) -> Vec<(usize, Vector3<f64>)> {
+    gathered(model, c, |m| states[m].dir)
+}
+
+/// Σ_i B_iᵀ v_i over the cable's members (−v_i on a member's first node, +v_i on its second),
+/// as (node, 3-vector) pairs over its distinct nodes.
+pub fn gathered(model: &Model, c: &Cluster, v: impl Fn(usize) -> Vector3<f64>) -> Vec<(usize, Vector3<f64>)> {
     let mut g: Vec<(usize, Vector3<f64>)> = Vec::with_capacity(c.nodes.len());
     let mut add = |n: usize, v: Vector3<f64>| match g.iter_mut().find(|(k, _)| *k == n) {
         Some((_, w)) => *w += v,
@@ -53,10 +59,20 @@ pub fn length_gradient(model: &Model, c: &Cluster, states: &[MemberState]) -> Ve
     };
     for &m in &c.members {
         let [a, b] = model.members[m].nodes;
-        add(a, -states[m].dir);
-        add(b, states[m].dir);
+        let vm = v(m);
+        add(a, -vm);
+        add(b, vm);
     }
     g
+}
+
+/// Adds Σ_pq factor · u_p w_qᵀ (both over the cable's nodes, from [`gathered`]) on the free DOFs.
+pub fn add_outer(dofs: &DofMap, u: &[(usize, Vector3<f64>)], w: &[(usize, Vector3<f64>)], factor: f64, sink: &mut (impl TangentSink + ?Sized)) {
+    for &(p, up) in u {
+        for &(q, wq) in w {
+            add_node_block(dofs, [p, q], &(up * wq.transpose() * factor), sink);
+        }
+    }
 }
 
 /// Adds Σ_t factor_t · (the clusters' tangent less their members' own material blocks),
@@ -71,14 +87,9 @@ pub fn add_sliding(model: &Model, dofs: &DofMap, terms: &[(&[MemberState], f64)]
                 add_member_block(dofs, m, model.members[m].nodes, &k, sink);
             }
             let k = factor * series_stiffness(c, states);
-            if k == 0.0 {
-                continue;
-            }
-            let g = length_gradient(model, c, states);
-            for &(p, gp) in &g {
-                for &(q, gq) in &g {
-                    add_node_block(dofs, [p, q], &(gp * gq.transpose() * k), sink);
-                }
+            if k != 0.0 {
+                let g = length_gradient(model, c, states);
+                add_outer(dofs, &g, &g, k, sink);
             }
         }
     }

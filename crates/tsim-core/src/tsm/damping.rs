@@ -1,9 +1,9 @@
 //! The stiffness-proportional term β·K of Rayleigh damping on members: the objective form
 //! β (dN/dl) l̇ e with its exact Newmark Jacobian, and the paper's β K_T v by member blocks.
 
-use super::{add_member_block, member_block, DofMap, MemberState};
+use super::{add_member_block, cluster, member_block, DofMap, MemberState};
 use crate::law::ForceLaw;
-use crate::model::Model;
+use crate::model::{Cluster, Model};
 use crate::solve::TangentSink;
 use nalgebra::{Matrix3, Vector3};
 use std::sync::Arc;
@@ -150,6 +150,31 @@ fn elastic_rate(s: &MemberState, w: &Vector3<f64>, rest_rate: &[f64], e: usize) 
     s.dir.dot(w) - rest_rate.get(e).map_or(0.0, |rho| rho * s.length)
 }
 
+/// Member `e`'s elastic extension rate, the relative end velocity of any member m being
+/// `w_of(m)`: its own ([`elastic_rate`]), or in a clustered cable its share (l_e/L) R of
+/// the cable's rate R ([`cable_rate`]). Its modulus being dN/dl_e = (dN/dL) L/l_e at one
+/// stretch, β k_e r_e is then the cable's one viscous force β (dN/dL) R on every member, and
+/// a rigid motion (R = 0) damps none.
+fn member_rate(model: &Model, states: &[MemberState], rest_rate: &[f64], e: usize, w_of: impl Fn(usize) -> Vector3<f64>) -> f64 {
+    match model.cluster_of(e) {
+        None => elastic_rate(&states[e], &w_of(e), rest_rate, e),
+        Some(c) => {
+            let (rate, length) = cable_rate(c, states, rest_rate, w_of);
+            states[e].length / length * rate
+        }
+    }
+}
+
+/// A clustered cable's elastic extension rate R = L̇ − L ρ (L̇ = Σ e_i·w_i, ρ = L̇0/L0 the
+/// rest rate its members share: they are actuated together, `cluster::check_actuators`)
+/// and its length L.
+fn cable_rate(c: &Cluster, states: &[MemberState], rest_rate: &[f64], w_of: impl Fn(usize) -> Vector3<f64>) -> (f64, f64) {
+    let length: f64 = c.members.iter().map(|&m| states[m].length).sum();
+    let stretching: f64 = c.members.iter().map(|&m| states[m].dir.dot(&w_of(m))).sum();
+    let rho = rest_rate.get(c.members[0]).copied().unwrap_or(0.0);
+    (stretching - length * rho, length)
+}
+
 /// A member's axial damping force β k r at elastic extension rate `rate`, or −N where a
 /// tension-only member's total N + β k r would push ([`DampingModulus`]); with whether it
 /// is held there. A member snapping taut: β k max(0, R), R its [`SnapRate`].
@@ -178,17 +203,32 @@ pub fn held_at_no_compression(d: f64, n: f64) -> (f64, bool) {
 }
 
 impl ObjectiveDamping<'_> {
-    /// Per member: its nodes, state, damping modulus and relative velocity w = v_b − v_a.
-    fn members(&self) -> impl Iterator<Item = (usize, [usize; 2], &MemberState, &DampingModulus, Vector3<f64>)> + '_ {
+    /// Per member: its nodes, state, damping modulus, relative velocity w = v_b − v_a and
+    /// elastic extension rate ([`member_rate`]).
+    fn members(&self) -> impl Iterator<Item = (usize, [usize; 2], &MemberState, &DampingModulus, Vector3<f64>, f64)> + '_ {
+        let clustered = !self.model.clusters.is_empty();
         (self.model.members.iter().zip(self.states).zip(self.moduli))
             .enumerate()
-            .map(|(e, ((mem, s), m))| (e, mem.nodes, s, m, relative(self.dofs, self.v, mem.nodes)))
+            .map(move |(e, ((mem, s), m))| {
+                let w = relative(self.dofs, self.v, mem.nodes);
+                let rate = if clustered {
+                    member_rate(self.model, self.states, self.rest_rate, e, |k| self.relative(k))
+                } else {
+                    elastic_rate(s, &w, self.rest_rate, e)
+                };
+                (e, mem.nodes, s, m, w, rate)
+            })
+    }
+
+    /// Member `k`'s relative end velocity.
+    fn relative(&self, k: usize) -> Vector3<f64> {
+        relative(self.dofs, self.v, self.model.members[k].nodes)
     }
 
     /// out += the damping force on the free DOFs.
     pub fn add_force(&self, out: &mut [f64]) {
-        for (e, nodes, s, m, w) in self.members() {
-            let (d, _) = axial_damping(s, m, self.beta, elastic_rate(s, &w, self.rest_rate, e));
+        for (_, nodes, s, m, _, rate) in self.members() {
+            let (d, _) = axial_damping(s, m, self.beta, rate);
             scatter(self.dofs, nodes, &(s.dir * d), out);
         }
     }
@@ -206,8 +246,13 @@ impl ObjectiveDamping<'_> {
     /// a e + b dr, the block β [(a k + b (c_v k − k ρ) + (dk/dl) R) e eᵀ + k (b e (P w)ᵀ +
     /// R P)/l] where R > 0, none where its force is zero.
     pub fn add_jacobian(&self, c_v: f64, symmetric: bool, sink: &mut (impl TangentSink + ?Sized)) {
-        for (e, nodes, s, m, w) in self.members() {
-            let rate = elastic_rate(s, &w, self.rest_rate, e);
+        for c in &self.model.clusters {
+            self.add_cable_jacobian(c, c_v, symmetric, sink);
+        }
+        for (e, nodes, s, m, w, rate) in self.members() {
+            if !self.model.clusters.is_empty() && self.model.cluster_of(e).is_some() {
+                continue;
+            }
             if axial_damping(s, m, self.beta, rate).1 {
                 add_member_block(self.dofs, e, nodes, &-member_block(s), sink);
                 continue;
@@ -249,8 +294,17 @@ impl ObjectiveDamping<'_> {
     /// examples/bench_factor.rs).
     pub fn skew_bound(&self, node_sum: &mut [f64]) -> f64 {
         node_sum.fill(0.0);
-        for (e, nodes, s, m, w) in self.members() {
-            if axial_damping(s, m, self.beta, elastic_rate(s, &w, self.rest_rate, e)).1 {
+        for c in &self.model.clusters {
+            // The cable's skew part β k_c b (g hᵀ − h gᵀ)/2 ([`Self::add_cable_jacobian`]):
+            // norm at most β k_c b |g| |h|, on every row of its nodes.
+            if let Ok(cable) = self.cable(c) {
+                let norm = |v: &[(usize, Vector3<f64>)]| v.iter().map(|(_, x)| x.norm_squared()).sum::<f64>().sqrt();
+                let bound = (self.beta * cable.modulus * cable.per_rate).abs() * norm(&cable.g) * norm(&cable.h);
+                cable.g.iter().for_each(|&(n, _)| node_sum[n] += bound);
+            }
+        }
+        for (e, nodes, s, m, w, rate) in self.members() {
+            if axial_damping(s, m, self.beta, rate).1 || (!self.model.clusters.is_empty() && self.model.cluster_of(e).is_some()) {
                 continue;
             }
             let per_rate = m.snap.map_or(1.0, |snap| snap.per_rate);
@@ -261,6 +315,98 @@ impl ObjectiveDamping<'_> {
             }
         }
         node_sum.iter().fold(0.0, |a, &b| a.max(b))
+    }
+}
+
+/// A clustered cable's damping at one state, for its Jacobian ([`ObjectiveDamping::cable`]).
+struct Cable {
+    /// g = ∂L/∂x and h = Σ B_iᵀ P_i w_i / l_i over the cable's nodes.
+    g: Vec<(usize, Vector3<f64>)>,
+    h: Vec<(usize, Vector3<f64>)>,
+    /// k_c = dN/dL [N/m].
+    modulus: f64,
+    /// The damped rate D (R, or a snap rate a L + b R + c) [m/s], the factor of g gᵀ in
+    /// ∂d/∂u / β, and b.
+    damped: f64,
+    along: f64,
+    per_rate: f64,
+}
+
+impl ObjectiveDamping<'_> {
+    /// The cable `c`'s figures for its Jacobian, `Err(true)` where its damping force is held
+    /// at −N, `Err(false)` where it is zero (a snap rate not positive). Its members share
+    /// one stretch, so its first member's modulus gives the cable's: k_c = k_1 l_1/L,
+    /// dk_c/dL = k_1' (l_1/L)²; `along` leaves out the c_v term (the skew bound has none).
+    fn cable(&self, c: &Cluster) -> Result<Cable, bool> {
+        let first = c.members[0];
+        let (s, m) = (&self.states[first], &self.moduli[first]);
+        let (rate, length) = cable_rate(c, self.states, self.rest_rate, |k| self.relative(k));
+        let share = s.length / length;
+        if axial_damping(s, m, self.beta, share * rate).1 {
+            return Err(true);
+        }
+        let (modulus, curvature) = (m.stiffness * share, m.curvature * share * share);
+        let rho = self.rest_rate.get(first).copied().unwrap_or(0.0);
+        let (damped, along, per_rate) = match &m.snap {
+            None => (rate, curvature * rate - modulus * rho, 1.0),
+            Some(snap) => {
+                // The members' snap rates summed: a L + b R + Σ c_i.
+                let constant: f64 = c.members.iter().map(|&e| self.moduli[e].snap.map_or(0.0, |r| r.constant)).sum();
+                let damped = snap.per_length * length + snap.per_rate * rate + constant;
+                if damped <= 0.0 {
+                    return Err(false);
+                }
+                (damped, snap.per_length * modulus + curvature * damped - snap.per_rate * modulus * rho, snap.per_rate)
+            }
+        };
+        let turning = |e: usize| {
+            let (s, w) = (&self.states[e], self.relative(e));
+            (w - s.dir * s.dir.dot(&w)) / s.length
+        };
+        Ok(Cable {
+            g: cluster::length_gradient(self.model, c, self.states),
+            h: cluster::gathered(self.model, c, turning),
+            modulus,
+            damped,
+            along,
+            per_rate,
+        })
+    }
+
+    /// Adds factor · P_i/l_i on each member of `c` (L's Hessian H, by member blocks).
+    fn add_hessian(&self, c: &Cluster, factor: impl Fn(&MemberState) -> f64, sink: &mut (impl TangentSink + ?Sized)) {
+        for &e in &c.members {
+            let s = &self.states[e];
+            let p = Matrix3::identity() - s.dir * s.dir.transpose();
+            add_member_block(self.dofs, e, self.model.members[e].nodes, &(p * (factor(s) / s.length)), sink);
+        }
+    }
+
+    /// [`Self::add_jacobian`]'s block of a clustered cable: its force d g, d = β k_c D,
+    /// has ∂/∂u = β [(k_c' D + k_c (a + b (c_v − ρ))) g gᵀ + b k_c g hᵀ + k_c D H], H the
+    /// members' P_i/l_i blocks (L's Hessian); held at −N, −(N H + (dN/dL) g gᵀ).
+    fn add_cable_jacobian(&self, c: &Cluster, c_v: f64, symmetric: bool, sink: &mut (impl TangentSink + ?Sized)) {
+        let cable = match self.cable(c) {
+            Ok(cable) => cable,
+            Err(held) => {
+                if held {
+                    self.add_hessian(c, |s| -s.force, sink);
+                    let g = cluster::length_gradient(self.model, c, self.states);
+                    cluster::add_outer(self.dofs, &g, &g, -cluster::series_stiffness(c, self.states), sink);
+                }
+                return;
+            }
+        };
+        let beta = self.beta;
+        cluster::add_outer(self.dofs, &cable.g, &cable.g, beta * (cable.along + cable.per_rate * c_v * cable.modulus), sink);
+        let skew = beta * cable.per_rate * cable.modulus;
+        if symmetric {
+            cluster::add_outer(self.dofs, &cable.g, &cable.h, 0.5 * skew, sink);
+            cluster::add_outer(self.dofs, &cable.h, &cable.g, 0.5 * skew, sink);
+        } else {
+            cluster::add_outer(self.dofs, &cable.g, &cable.h, skew, sink);
+        }
+        self.add_hessian(c, |_| beta * cable.modulus * cable.damped, sink);
     }
 }
 
@@ -383,7 +529,11 @@ fn member_damping(model: &Model, e: usize, states: &[MemberState], damping: Memb
     match damping {
         MemberDamping::Objective { moduli, beta, rest_rate } => {
             let s = &states[e];
-            s.dir * axial_damping(s, &moduli[e], beta, elastic_rate(s, &w, rest_rate, e)).0
+            let rate = member_rate(model, states, rest_rate, e, |k| {
+                let [a, b] = model.members[k].nodes;
+                velocities[b] - velocities[a]
+            });
+            s.dir * axial_damping(s, &moduli[e], beta, rate).0
         }
         MemberDamping::Blocks(blocks) => blocks[e] * w,
         MemberDamping::Axial(forces) => states[e].dir * forces[e],
