@@ -460,10 +460,23 @@ fn cluster_damping_ignores_rigid_motion_and_free_slide() {
     assert!(reference > 1.0, "stretching is damped: {reference} N");
     for (name, v) in [("rigid", &rigid), ("slide", &slide)] {
         let f = norm(&d.force(&x, v));
-        assert!(f < 1e-12 * reference, "{name}: damping force {f:e} N against {reference:e} N stretching");
+        assert!(
+            f < 1e-12 * reference,
+            "{name}: damping force {f:e} N against {reference:e} N stretching"
+        );
     }
     // The members' own tensions' rates do differ on the slide: the test is not trivial.
-    let rates: Vec<f64> = (0..4).map(|m| asm.states[m].dir.dot(&(if d.model.members[m].nodes.contains(&2) { along } else { Vector3::zeros() } * if d.model.members[m].nodes[1] == 2 { 1.0 } else { -1.0 }))).collect();
+    let rates: Vec<f64> = (0..4)
+        .map(|m| {
+            asm.states[m].dir.dot(
+                &(if d.model.members[m].nodes.contains(&2) {
+                    along
+                } else {
+                    Vector3::zeros()
+                } * if d.model.members[m].nodes[1] == 2 { 1.0 } else { -1.0 }),
+            )
+        })
+        .collect();
     assert!(rates.iter().any(|r| r.abs() > 0.1), "the slide lengthens a member: {rates:?}");
 }
 
@@ -497,6 +510,114 @@ fn cluster_damping_jacobian_is_its_derivative() {
                 worst = worst.max(((plus[i] - minus[i]) / (2.0 * h) - k.0[i][j]).abs() / scale);
             }
         }
-        assert!(worst < 1e-7, "{name}: damping Jacobian against differences: {worst:.2e} of the largest entry {scale:.3e}");
+        assert!(
+            worst < 1e-7,
+            "{name}: damping Jacobian against differences: {worst:.2e} of the largest entry {scale:.3e}"
+        );
+    }
+}
+
+/// What a user reads of the `reel` stage at the sample times.
+#[derive(Default)]
+struct Reel {
+    stage: String,
+    times: Vec<f64>,
+    kept: Vec<(Vec<Vector3<f64>>, Vec<f64>, Vec<f64>, Vec<f64>, tsim::record::Energy)>,
+}
+
+impl Recorder for Reel {
+    fn begin_stage(&mut self, stage: &Stage, _: &tsim::record::Constraints) -> RecordResult {
+        self.stage = stage.name().to_string();
+        Ok(())
+    }
+
+    fn frame(&mut self, f: &Frame) -> RecordResult {
+        if self.stage == "reel" && self.times.iter().any(|t| (t - f.time).abs() < 1e-9) {
+            let rest = f.rest_lengths.expect("rest lengths").to_vec();
+            self.kept
+                .push((f.positions.to_vec(), f.forces.to_vec(), f.reactions.to_vec(), rest, f.energy));
+        }
+        Ok(())
+    }
+}
+
+/// The `reel` stage of prism_cluster.yaml: the loop reeled in by a winch over 0.5 s, then
+/// held, under objective Rayleigh damping. At Δt = 2, 1, 0.5 ms: the loop's rest length
+/// follows the schedule (1e-12), its three spans carry one total (elastic + viscous)
+/// tension (1e-9), the ledger KE + SE + D − W − W_a closes to ≤ 1e-6 of the actuator's
+/// work, and every quantity a user reads converges at second order (Richardson ratio ≥ 3
+/// between successive differences, 4 in the limit; two exceptions at 0.25 s below).
+#[test]
+fn reeled_loop_follows_its_winch_and_converges_at_second_order() {
+    let times = [0.25, 0.6, 1.0];
+    let text = std::fs::read_to_string(PRISM).unwrap();
+    let run = |dt: f64| {
+        let text = text.replace("      dt: 0.001\n", &format!("      dt: {dt}\n"));
+        let mut cfg = tsim::config::parse_case(&text, PRISM).unwrap_or_else(|e| panic!("{e}"));
+        cfg.outputs.every = 1;
+        let mut reel = Reel {
+            times: times.to_vec(),
+            ..Default::default()
+        };
+        let summary = tsim::pipeline::run_case(&cfg, &mut reel).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(reel.kept.len(), times.len(), "every sample time is a step at Δt = {dt}");
+        let ledger = summary.transient("reel").unwrap().transient.max_balance_error;
+        (reel.kept, ledger, cfg.model.build().unwrap(), cfg.rest_lengths())
+    };
+    let runs: Vec<_> = [2e-3, 1e-3, 5e-4].into_iter().map(run).collect();
+    let model = &runs[0].2;
+    let ring = &model.clusters[0].members;
+    let (first, _, _, rest0) = &runs[1];
+    let total = |rest: &[f64]| ring.iter().map(|&m| rest[m]).sum::<f64>();
+    // The loop's rest length at the stage's start: the given one (`push` slides it, keeping
+    // its total).
+    let start = total(rest0);
+    for ((_, forces, _, rest, _), t) in first.iter().zip(times) {
+        let expected = start * (1.0 - 0.001 * (t / 0.5).min(1.0));
+        assert!(
+            (total(rest) - expected).abs() < 1e-12 * start,
+            "loop rest length at t = {t}: {} vs {expected}",
+            total(rest)
+        );
+        assert!(
+            ring.iter().all(|&m| (forces[m] - forces[ring[0]]).abs() < 1e-9 * forces[ring[0]]),
+            "one tension at t = {t}"
+        );
+    }
+    let work = first.last().unwrap().4.actuation;
+    let ledger: Vec<f64> = runs.iter().map(|r| r.1).collect();
+    eprintln!("actuator work {work:.6e} J; ledger errors at Δt = 2, 1, 0.5 ms: {ledger:?} J");
+    assert!(work > 0.0 && ledger.iter().all(|&e| e <= 1e-6 * work));
+    let flat = |k: usize, r: usize| {
+        let (x, f, reactions, _, e) = &runs[r].0[k];
+        vec![
+            ("position", x.iter().flat_map(|p| p.iter().copied()).collect::<Vec<f64>>()),
+            ("member force", f.clone()),
+            ("reaction", reactions.clone()),
+            ("kinetic", vec![e.kinetic]),
+            ("strain", vec![e.strain]),
+            ("damping", vec![e.damping]),
+            ("actuation", vec![e.actuation]),
+        ]
+    };
+    for (k, t) in times.iter().enumerate() {
+        let [a, b, c] = [0, 1, 2].map(|r| flat(k, r));
+        for (((name, x), (_, y)), (_, z)) in a.iter().zip(&b).zip(&c) {
+            let diff = |p: &[f64], q: &[f64]| p.iter().zip(q).fold(0.0_f64, |d, (u, v)| d.max((u - v).abs()));
+            let (coarse, fine) = (diff(x, y), diff(y, z));
+            eprintln!(
+                "t = {t} s, {name}: differences {coarse:.3e}, {fine:.3e}, ratio {:.2}",
+                coarse / fine
+            );
+            if *t < 0.5 && (*name == "reaction" || *name == "damping") {
+                // Not asserted: at 0.25 s the reactions and the damping energy still hold
+                // the prism's stiff axial modes (up to 424 Hz, ωΔt = 5.3 at 2 ms) that the
+                // ramp's start excited, damped but not yet in their asymptotic range:
+                // measured ratios 2.76 and 2.71. The same prism with the ring as three
+                // members shows the same (2.22 for its reactions), so it is not the cluster.
+                continue;
+            }
+            assert!(coarse / fine > 3.0, "t = {t} s, {name}: differences {coarse:e}, {fine:e}");
+        }
     }
 }

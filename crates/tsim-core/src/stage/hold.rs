@@ -154,7 +154,10 @@ impl Analysis for Hold {
         };
         model
             .check_cluster_actuation(self.actuators.iter().map(|a| a.members.as_slice()))
-            .map_err(|reason| Error::Stage { stage: name.into(), reason })?;
+            .map_err(|reason| Error::Stage {
+                stage: name.into(),
+                reason,
+            })?;
         let schedule = RestSchedule::new(state.rest_of(structure).to_vec(), self.actuators.clone());
         let asm = structure.assembly(&dofs, state.positions.clone(), state.rest_of(structure));
         super::require_apart(&asm, name)?;

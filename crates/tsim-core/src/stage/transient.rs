@@ -348,7 +348,9 @@ impl Transient {
         if let Err(reason) = model.check_cluster_actuation(self.actuators.iter().map(|a| a.members.as_slice())) {
             Some(reason)
         } else if self.params.scheme == crate::dynamics::Scheme::EnergyMomentum {
-            Some(format!("the clustered cable `{cluster}` has no energy–momentum form yet; use `scheme: midpoint` or `newmark`"))
+            Some(format!(
+                "the clustered cable `{cluster}` has no energy–momentum form yet; use `scheme: midpoint` or `newmark`"
+            ))
         } else {
             None
         }

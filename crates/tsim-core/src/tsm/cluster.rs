@@ -67,7 +67,13 @@ pub fn gathered(model: &Model, c: &Cluster, v: impl Fn(usize) -> Vector3<f64>) -
 }
 
 /// Adds Σ_pq factor · u_p w_qᵀ (both over the cable's nodes, from [`gathered`]) on the free DOFs.
-pub fn add_outer(dofs: &DofMap, u: &[(usize, Vector3<f64>)], w: &[(usize, Vector3<f64>)], factor: f64, sink: &mut (impl TangentSink + ?Sized)) {
+pub fn add_outer(
+    dofs: &DofMap,
+    u: &[(usize, Vector3<f64>)],
+    w: &[(usize, Vector3<f64>)],
+    factor: f64,
+    sink: &mut (impl TangentSink + ?Sized),
+) {
     for &(p, up) in u {
         for &(q, wq) in w {
             add_node_block(dofs, [p, q], &(up * wq.transpose() * factor), sink);

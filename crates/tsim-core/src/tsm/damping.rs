@@ -356,7 +356,11 @@ impl ObjectiveDamping<'_> {
                 if damped <= 0.0 {
                     return Err(false);
                 }
-                (damped, snap.per_length * modulus + curvature * damped - snap.per_rate * modulus * rho, snap.per_rate)
+                (
+                    damped,
+                    snap.per_length * modulus + curvature * damped - snap.per_rate * modulus * rho,
+                    snap.per_rate,
+                )
             }
         };
         let turning = |e: usize| {
@@ -398,7 +402,13 @@ impl ObjectiveDamping<'_> {
             }
         };
         let beta = self.beta;
-        cluster::add_outer(self.dofs, &cable.g, &cable.g, beta * (cable.along + cable.per_rate * c_v * cable.modulus), sink);
+        cluster::add_outer(
+            self.dofs,
+            &cable.g,
+            &cable.g,
+            beta * (cable.along + cable.per_rate * c_v * cable.modulus),
+            sink,
+        );
         let skew = beta * cable.per_rate * cable.modulus;
         if symmetric {
             cluster::add_outer(self.dofs, &cable.g, &cable.h, 0.5 * skew, sink);
