@@ -517,12 +517,15 @@ fn cluster_damping_jacobian_is_its_derivative() {
     }
 }
 
+/// One frame as a user reads it: positions, member forces, reactions, rest lengths, energies.
+type Sample = (Vec<Vector3<f64>>, Vec<f64>, Vec<f64>, Vec<f64>, tsim::record::Energy);
+
 /// What a user reads of the `reel` stage at the sample times.
 #[derive(Default)]
 struct Reel {
     stage: String,
     times: Vec<f64>,
-    kept: Vec<(Vec<Vector3<f64>>, Vec<f64>, Vec<f64>, Vec<f64>, tsim::record::Energy)>,
+    kept: Vec<Sample>,
 }
 
 impl Recorder for Reel {
