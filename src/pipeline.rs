@@ -11,7 +11,8 @@ use crate::error::{Error, Result};
 use crate::model::clearance::Tracker;
 use crate::model::Model;
 use crate::record::{
-    ClearanceLog, ClearanceSummary, FormFindRecord, FrameClearance, ModelRecord, Recorder, RigidityRecord, Stage, StageKind, StageLayout,
+    ClearanceLog, ClearanceSummary, ClusterLog, ClusterSummary, FormFindRecord, FrameClearance, ModelRecord, Observed, Recorder,
+    RigidityRecord, Stage, StageKind, StageLayout,
 };
 use crate::rigidity::{self, Rigidity, RigidityError};
 use crate::stage::eigen::EigenSummary;
@@ -49,6 +50,9 @@ pub struct CaseSummary {
     /// pass-through events (absent with `outputs.clearance: false`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clearance: Option<ClearanceSummary>,
+    /// Each clustered cable's largest tension and slide (none without clusters).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub clusters: Vec<ClusterSummary>,
 }
 
 impl CaseSummary {
@@ -91,9 +95,11 @@ impl CaseSummary {
 
 /// Runs every configured stage of one case.
 pub fn run_case(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSummary> {
-    let mut log = ClearanceLog::new(recorder);
+    let mut log = Observed::new(recorder, (ClearanceLog::default(), ClusterLog::default()));
     let mut summary = run_stages(cfg, &mut log)?;
-    summary.clearance = log.summary();
+    let (clearance, clusters) = &log.observer;
+    summary.clearance = clearance.summary();
+    summary.clusters = clusters.summary();
     Ok(summary)
 }
 

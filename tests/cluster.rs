@@ -6,6 +6,9 @@
 //!
 //! Run with `cargo test --release --test cluster`.
 
+mod common;
+
+use common::assert_field_errors;
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -623,4 +626,67 @@ fn reeled_loop_follows_its_winch_and_converges_at_second_order() {
             assert!(coarse / fine > 3.0, "t = {t} s, {name}: differences {coarse:e}, {fine:e}");
         }
     }
+}
+
+/// Bad clusters are refused when the config loads, at the cluster's line, naming what is
+/// wrong and the fix; a cable of two materials and a winch on part of a cable when the
+/// case runs, naming the member or the cable.
+#[test]
+fn cluster_errors_name_the_cable_and_the_fix() {
+    let text = std::fs::read_to_string(PRISM).unwrap();
+    let line = "    - { id: top_ring, members: [ct0, ct1, ct2] }";
+    assert!(text.contains(line));
+    let at = text[..text.find(line).unwrap()].lines().count() + 1;
+    for (members, message) in [
+        ("[ct0, s0]", "member `s0` is a strut; only cables slide over nodes"),
+        ("[ct0, ct9]", "unknown member `ct9`"),
+        (
+            "[cb0, ct0]",
+            "members `cb0` and `ct0` follow each other in the list but share no node",
+        ),
+        ("[ct0]", "runs through at least two members"),
+        ("[ct0, ct1, ct0]", "member `ct0` is listed twice"),
+    ] {
+        let bad = text.replace(line, &format!("    - {{ id: top_ring, members: {members} }}"));
+        let e = match tsim::run::expand(&bad, "bad.yaml", false) {
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("{members} accepted"),
+        };
+        assert_field_errors(&e, "bad.yaml", &[(at, "model.clusters[0]", message)]);
+    }
+    let two = text.replace(line, &format!("{line}\n    - {{ id: again, members: [ct1, ct2] }}"));
+    let e = tsim::run::expand(&two, "bad.yaml", false)
+        .map(|_| ())
+        .expect_err("a member in two cables")
+        .to_string();
+    assert_field_errors(
+        &e,
+        "bad.yaml",
+        &[(at + 1, "model.clusters[1]", "member `ct1` is already in cluster `top_ring`")],
+    );
+    let run = |text: &str| {
+        let cfg = tsim::config::parse_case(text, PRISM).unwrap_or_else(|e| panic!("{e}"));
+        tsim::pipeline::run_case(&cfg, &mut tsim::record::NoRecorder)
+            .map(|_| ())
+            .expect_err("refused")
+            .to_string()
+    };
+    let mixed = text.replace(
+        "substitution:\n",
+        "substitution:\n  assign: [{ members: [ct1], material: steel_tube }]\n",
+    );
+    assert!(
+        run(&mixed).contains("member `ct1`: in cluster `top_ring` it has another material than `ct0`"),
+        "{}",
+        run(&mixed)
+    );
+    let partial = text.replace(
+        "        - { members: [ct0, ct1, ct2], scale: 0.999 }",
+        "        - { members: [ct0], scale: 0.999 }",
+    );
+    assert!(
+        run(&partial).contains("winch: an actuator changes part of the clustered cable `top_ring`"),
+        "{}",
+        run(&partial)
+    );
 }

@@ -124,6 +124,12 @@ API_SCRIPT = textwrap.dedent(
     mine.close()
     with h5py.File("mine.h5", "r") as f:
         assert np.array_equal(f["y"][()], position)
+    # The same prism with its top ring one clustered cable, from the arrays.
+    ring = {"top_ring": ["ct0", "ct1", "ct2"]}
+    clustered = dict(cfg, name="clustered", model=tsim.model(**arrays, clusters=ring))
+    assert clustered["model"]["clusters"] == [{"id": "top_ring", "members": ["ct0", "ct1", "ct2"]}]
+    loop = tsim.run(clustered, out="runs").result(stage="static")
+    assert np.array_equal(loop["cluster_tension"].values[:, 0], loop["member_force"].sel(member="ct1").values)
     try:
         tsim.run({"name": "broken", "model": {"nodes": []}}, out="runs")
     except tsim.ConfigError as e:

@@ -152,7 +152,7 @@ def _dataset(path, group, lazy):
     return opener(path, engine="h5netcdf", group=group)
 
 
-def model(nodes, members, kind, *, node_ids=None, member_ids=None, fix=None, rest_length=None, member_groups=None, node_groups=None):
+def model(nodes, members, kind, *, node_ids=None, member_ids=None, fix=None, rest_length=None, member_groups=None, node_groups=None, clusters=None):
     """The `model` section of a config from arrays.
 
     nodes: (n, 3) coordinates [m]. members: (m, 2) node indices (from 0) of each member's
@@ -162,7 +162,8 @@ def model(nodes, members, kind, *, node_ids=None, member_ids=None, fix=None, res
     (index or id) to its directions ("xz"). rest_length: (m,) [m], for a model run without
     form-finding (NaN: none). member_groups: a mapping from a group name to its members
     (indices or ids). node_groups: the same for nodes (point masses, loads, initial
-    conditions).
+    conditions). clusters: a mapping from a clustered cable's id to its members (indices
+    or ids) in the order the cable runs through them (docs/config.md, "Clustered cables").
     """
     x = np.asarray(nodes, dtype=float)
     if x.ndim != 2 or x.shape[1] != 3:
@@ -199,6 +200,10 @@ def model(nodes, members, kind, *, node_ids=None, member_ids=None, fix=None, res
     section = {"nodes": node_list, "members": member_list}
     if node_groups:
         section["groups"] = {g: [node_ids[i] for i in _indices(v, node_ids, f"node_groups[{g!r}]")] for g, v in node_groups.items()}
+    if clusters:
+        section["clusters"] = [
+            {"id": c, "members": [member_ids[j] for j in _indices(v, member_ids, f"clusters[{c!r}]")]} for c, v in clusters.items()
+        ]
     return section
 
 

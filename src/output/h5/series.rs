@@ -5,9 +5,10 @@ use super::contacts::ContactTable;
 use super::netcdf::{append_chunk, append_rows, extend_vectors, extendable};
 use super::netcdf::{describe, str_attr, varlen, Dims};
 use super::{Error, GZIP_LEVEL, MIN_CLEARANCE, MIN_CLEARANCE_PAIR, PAIR};
-use crate::model::AXES;
+use crate::model::{Cluster, AXES};
 use crate::output::chunk::ChunkEncoder;
 use crate::record::{ClearanceEvent, Constraints, EventKind, Frame, ModelRecord, StageLayout};
+
 use hdf5::{Dataset, Group};
 
 /// Node and member ids, the labels of the `node` and `member` dimensions.
@@ -28,6 +29,10 @@ pub(super) struct Series {
     modes: usize,
     /// Whether the stage changes rest lengths in time (`rest_length`, `actuator_work`).
     actuated: bool,
+    /// The clustered cables with the rest lengths their slides count from
+    /// (`cluster_tension`, `pulley_slide`; empty: none).
+    clusters: Vec<Cluster>,
+    reference_rest: Vec<f64>,
     events: EventTable,
     contacts: ContactTable,
     written: usize,
@@ -96,6 +101,47 @@ fn member_and_energy_columns(g: &Dims, dynamic: bool, actuated: bool, chunk: usi
         )?);
     }
     Ok(columns)
+}
+
+/// A clustered structure's `cluster` and `pulley` dimensions (labels: the cluster ids, and
+/// `<cluster>.<node>` for each pulley between two listed members) and their streamed
+/// `cluster_tension` and `pulley_slide` ([`Cluster::slides`]).
+fn cluster_columns(g: &mut Dims, record: &ModelRecord, chunk: usize) -> Result<Vec<Dataset>, Error> {
+    let (model, clusters) = (record.model, &record.model.clusters);
+    g.labels(
+        "cluster",
+        &clusters.iter().map(|c| c.id.as_str()).collect::<Vec<_>>(),
+        "clustered cable id",
+    )?;
+    let pulleys: Vec<String> = clusters
+        .iter()
+        .flat_map(|c| {
+            c.nodes[1..c.members.len()]
+                .iter()
+                .map(move |&n| format!("{}.{}", c.id, model.nodes[n].id))
+        })
+        .collect();
+    g.labels(
+        "pulley",
+        &pulleys,
+        "a clustered cable's pulley node between two of its listed members (cluster.node)",
+    )?;
+    Ok(vec![
+        g.streamed(
+            "cluster_tension",
+            &["cluster"],
+            chunk,
+            "N",
+            "the cable's one tension, elastic + viscous (that of each of its members)",
+        )?,
+        g.streamed(
+            "pulley_slide",
+            &["pulley"],
+            chunk,
+            "m",
+            "cable (as rest length) run over the pulley towards the cable's first member since substitution, less a winch's uniform change",
+        )?,
+    ])
 }
 
 /// The `node`, `member`, `xyz` and `support` dimensions with their labels, and the
@@ -222,6 +268,10 @@ impl Series {
         }
         let actuated = layout.actuated;
         columns.extend(member_and_energy_columns(&g, !folding, actuated, chunk)?);
+        let clusters = record.model.clusters.clone();
+        if !clusters.is_empty() {
+            columns.extend(cluster_columns(&mut g, record, chunk)?);
+        }
         columns.extend(load_columns(&g, chunk)?);
         // CF: makes xarray list `fraction` and the support labels as (non-dimension)
         // coordinates.
@@ -249,6 +299,8 @@ impl Series {
             folding,
             modes,
             actuated,
+            clusters,
+            reference_rest: record.rest_lengths.to_vec(),
             events,
             contacts,
             written: 0,
@@ -303,6 +355,11 @@ impl Series {
                 .ok_or_else(|| format!("HDF5: frame {} of an actuated stage lacks its rest lengths", f.step))?;
             next().extend_from_slice(rest);
             next().push(e.actuation);
+            if !self.clusters.is_empty() {
+                next().extend(self.clusters.iter().map(|c| f.forces[c.members[0]]));
+                let slides = next();
+                self.clusters.iter().for_each(|c| c.slides(rest, &self.reference_rest, slides));
+            }
         }
         extend_vectors(next(), f.applied);
         next().extend_from_slice(f.reactions);

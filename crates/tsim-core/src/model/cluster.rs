@@ -70,6 +70,21 @@ impl Cluster {
         })
     }
 
+    /// The slide over each pulley between two of its listed members (`nodes[1..k]`, k
+    /// members), from the rest lengths `reference` to `rest` [m], into `out`: Σ_{i≤j}
+    /// (l0_i − l0_i^ref · L0/L0^ref) over the members up to pulley j, the cable (as rest
+    /// length) that has run over it towards the cable's first member, less a winch's
+    /// uniform change of the whole.
+    pub fn slides(&self, rest: &[f64], reference: &[f64], out: &mut Vec<f64>) {
+        let total = |r: &[f64]| self.members.iter().map(|&m| r[m]).sum::<f64>();
+        let scale = total(rest) / total(reference);
+        let mut run = 0.0;
+        for &m in &self.members[..self.members.len() - 1] {
+            run += rest[m] - reference[m] * scale;
+            out.push(run);
+        }
+    }
+
     /// The pulley nodes: every node the cable passes between two of its members (for a
     /// closed loop, its first node too).
     pub fn pulleys(&self) -> &[usize] {

@@ -1,20 +1,16 @@
-//! The case's clearance record: a recorder that passes every call on to another and keeps,
-//! from the frames' clearance, the smallest clearance of the case (its pair, stage, step
-//! and time) and the events, for the case summary.
+//! The case's clearance record: an [`Observer`] that keeps, from the frames' clearance, the
+//! smallest clearance of the case (its pair, stage, step and time) and the events, for the
+//! case summary.
 
-use super::{
-    ClearanceEvent, Constraints, EigenRecord, FormFindRecord, Frame, FrameClearance, ModelRecord, Nearest, Outcome, RecordResult, Recorder,
-    RigidityRecord, Stage, StageKind,
-};
+use super::{ClearanceEvent, FormFindRecord, Frame, FrameClearance, ModelRecord, Nearest, Observer, Stage, StageKind};
 
 /// Most events listed in the summary (all are counted, and all are in `result.h5`): a long
 /// vibration with struts in contact would otherwise fill `summary.json`.
 pub const SUMMARY_EVENTS: usize = 1000;
 
-/// Passes everything on to `inner`, keeping the clearance record. Its storage is reserved
-/// at creation: a step allocates nothing.
-pub struct ClearanceLog<'r> {
-    inner: &'r mut dyn Recorder,
+/// Keeps the clearance record of the records it observes. Its storage is reserved at
+/// creation: a step allocates nothing.
+pub struct ClearanceLog {
     stage: Stage,
     member_ids: Vec<String>,
     /// Whether any record carried clearance.
@@ -61,11 +57,10 @@ pub struct EventSummary {
     pub clearance: f64,
 }
 
-impl<'r> ClearanceLog<'r> {
-    /// A log in front of `inner`, with nothing recorded yet.
-    pub fn new(inner: &'r mut dyn Recorder) -> Self {
+impl Default for ClearanceLog {
+    /// A log with nothing recorded yet.
+    fn default() -> Self {
         ClearanceLog {
-            inner,
             stage: Stage::of(StageKind::FormFinding),
             member_ids: Vec::new(),
             tracked: false,
@@ -74,7 +69,9 @@ impl<'r> ClearanceLog<'r> {
             event_count: 0,
         }
     }
+}
 
+impl ClearanceLog {
     fn note(&mut self, stage: &Stage, step: usize, time: f64, clearance: Option<FrameClearance>) {
         let Some(c) = clearance else { return };
         self.tracked = true;
@@ -116,34 +113,18 @@ impl<'r> ClearanceLog<'r> {
     }
 }
 
-impl Recorder for ClearanceLog<'_> {
-    fn model(&mut self, record: &ModelRecord) -> RecordResult {
+impl Observer for ClearanceLog {
+    fn model(&mut self, record: &ModelRecord) {
         self.member_ids = record.model.members.iter().map(|m| m.id.clone()).collect();
-        self.inner.model(record)
     }
-    fn formfinding(&mut self, record: &FormFindRecord) -> RecordResult {
+    fn formfinding(&mut self, record: &FormFindRecord) {
         self.note(record.stage, 0, 0.0, record.clearance);
-        self.inner.formfinding(record)
     }
-    fn rigidity(&mut self, record: &RigidityRecord) -> RecordResult {
-        self.inner.rigidity(record)
-    }
-    fn eigen(&mut self, record: &EigenRecord) -> RecordResult {
-        self.inner.eigen(record)
-    }
-    fn begin_stage(&mut self, stage: &Stage, constraints: &Constraints) -> RecordResult {
+    fn begin_stage(&mut self, stage: &Stage) {
         self.stage = stage.clone();
-        self.inner.begin_stage(stage, constraints)
     }
-    fn frame(&mut self, frame: &Frame) -> RecordResult {
+    fn frame(&mut self, frame: &Frame) {
         let stage = self.stage.clone();
         self.note(&stage, frame.step, frame.time, frame.clearance);
-        self.inner.frame(frame)
-    }
-    fn end_stage(&mut self, stage: &Stage) -> RecordResult {
-        self.inner.end_stage(stage)
-    }
-    fn finish(&mut self, outcome: &Outcome) -> RecordResult {
-        self.inner.finish(outcome)
     }
 }

@@ -5,13 +5,17 @@
 //! knows files or threads.
 
 mod clearance;
+mod clusters;
 mod fanout;
+mod observe;
 
 pub use crate::dynamics::Energy;
 pub use crate::model::clearance::{Event as ClearanceEvent, EventKind, Nearest};
 pub use crate::rigidity::Rigidity;
 pub use clearance::{ClearanceLog, ClearanceSummary};
+pub use clusters::{ClusterLog, ClusterSummary};
 pub use fanout::Recorders;
+pub use observe::{Observed, Observer};
 
 use crate::model::{Model, AXES};
 use nalgebra::Vector3;

@@ -152,12 +152,7 @@ impl Analysis for Hold {
         } else {
             vec![Vector3::zeros(); model.node_count()]
         };
-        model
-            .check_cluster_actuation(self.actuators.iter().map(|a| a.members.as_slice()))
-            .map_err(|reason| Error::Stage {
-                stage: name.into(),
-                reason,
-            })?;
+        super::whole_cables(model, &self.actuators, name)?;
         let schedule = RestSchedule::new(state.rest_of(structure).to_vec(), self.actuators.clone());
         let asm = structure.assembly(&dofs, state.positions.clone(), state.rest_of(structure));
         super::require_apart(&asm, name)?;

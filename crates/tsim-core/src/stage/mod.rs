@@ -120,6 +120,17 @@ fn require_apart(asm: &crate::tsm::Assembly, stage: &str) -> Result<()> {
     }
 }
 
+/// Refuses `actuators` that change part of a clustered cable of `model` in `stage`
+/// ([`Model::check_cluster_actuation`]).
+fn whole_cables(model: &crate::model::Model, actuators: &[crate::dynamics::Actuator], stage: &str) -> Result<()> {
+    model
+        .check_cluster_actuation(actuators.iter().map(|a| a.members.as_slice()))
+        .map_err(|reason| Error::Stage {
+            stage: stage.into(),
+            reason,
+        })
+}
+
 /// A recorder failure as a stage error, keeping its source.
 fn record_error(stage: &str) -> impl Fn(RecordError) -> Error + '_ {
     move |source| Error::Record {

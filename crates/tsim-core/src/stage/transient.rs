@@ -309,6 +309,7 @@ impl Transient {
     ) -> Result<(State, TransientSummary)> {
         let name = self.stage.name();
         let model = &structure.model;
+        super::whole_cables(model, &self.actuators, name)?;
         if let Some(reason) = self.cluster_limit(model) {
             return Err(Error::Stage {
                 stage: name.into(),
@@ -341,13 +342,11 @@ impl Transient {
         Ok((final_state(&nm, &dofs, rest_lengths), summary))
     }
 
-    /// Why this stage cannot run `model`'s clustered cables, if it cannot: an actuator on
-    /// part of one, or the energy–momentum form, not written for them (`tsm::cluster`).
+    /// Why this stage cannot run `model`'s clustered cables, if it cannot: the
+    /// energy–momentum form is not written for them (`tsm::cluster`).
     fn cluster_limit(&self, model: &Model) -> Option<String> {
         let cluster = &model.clusters.first()?.id;
-        if let Err(reason) = model.check_cluster_actuation(self.actuators.iter().map(|a| a.members.as_slice())) {
-            Some(reason)
-        } else if self.params.scheme == crate::dynamics::Scheme::EnergyMomentum {
+        if self.params.scheme == crate::dynamics::Scheme::EnergyMomentum {
             Some(format!(
                 "the clustered cable `{cluster}` has no energy–momentum form yet; use `scheme: midpoint` or `newmark`"
             ))
