@@ -12,12 +12,12 @@ use common::assert_field_errors;
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
 use std::sync::Arc;
-use tsim::dynamics::{DampingTangent, Loads, NewmarkParams, Rayleigh};
+use tsim::dynamics::Loads;
 use tsim::law::{ForceLaw, LinearElastic, OgdenCord};
 use tsim::model::{Cluster, Member, MemberKind, Model, Node};
-use tsim::record::{Frame, RecordResult, Recorder, Stage, StageKind};
+use tsim::record::{Frame, RecordResult, Recorder, Stage};
 use tsim::solve::TangentSink;
-use tsim::stage::transient::{Initial, Transient};
+use tsim::stage::transient::Initial;
 use tsim::stage::{Analysis, Settings};
 use tsim::structure::{State, Structure};
 use tsim::tsm::{Assembly, DofMap, Elements};
@@ -204,20 +204,7 @@ fn atwood_machine_matches_closed_form() {
     s.masses = vec![0.0, m1, m2];
     s.gravity = Vector3::new(0.0, 0.0, -g);
     let (dt, steps) = (0.01, 60);
-    let stage = Transient {
-        stage: Stage::new(StageKind::Transient, "fall"),
-        params: NewmarkParams {
-            dt,
-            max_cuts: 0,
-            ..Default::default()
-        },
-        duration: dt * steps as f64,
-        rayleigh: Rayleigh::default(),
-        tangent: DampingTangent::Objective,
-        loads: Loads::default(),
-        actuators: Vec::new(),
-        initial: Initial::default(),
-    };
+    let stage = common::transient("fall", dt, steps, Loads::default(), Initial::default());
     let mut track = Track::default();
     let start = State::at_rest(s.model.positions());
     stage

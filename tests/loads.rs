@@ -17,11 +17,11 @@ use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::sync::Arc;
 use tsim::config::{parse_case, CaseConfig, NodalForceSpec, TimeFunctionSpec, TimeStep};
-use tsim::dynamics::{DampingTangent, GroundMotion, Loads, NewmarkParams, NodalLoad, Rayleigh, TimeFunction};
+use tsim::dynamics::{GroundMotion, Loads, NodalLoad, Rayleigh, TimeFunction};
 use tsim::law::{ForceLaw, LinearElastic};
 use tsim::model::{Member, MemberKind, Model, Node};
 use tsim::pipeline::run_case;
-use tsim::record::{Energy, Frame, ModelRecord, RecordResult, Recorder, Stage, StageKind};
+use tsim::record::{Energy, Frame, ModelRecord, RecordResult, Recorder, Stage};
 use tsim::stage::transient::{Initial, Transient, TransientSummary};
 use tsim::stage::{Analysis, Settings};
 use tsim::structure::{State, Structure};
@@ -114,20 +114,7 @@ fn chain(k: f64, masses: &[f64]) -> Structure {
 }
 
 fn transient(dt: f64, steps: usize, loads: Loads, initial: Initial) -> Transient {
-    Transient {
-        stage: Stage::new(StageKind::Transient, "free_vibration"),
-        params: NewmarkParams {
-            dt,
-            max_cuts: 0,
-            ..Default::default()
-        },
-        duration: dt * steps as f64,
-        rayleigh: Rayleigh::default(),
-        tangent: DampingTangent::Objective,
-        loads,
-        actuators: Vec::new(),
-        initial,
-    }
+    common::transient("free_vibration", dt, steps, loads, initial)
 }
 
 /// Runs `stage` on `s` from rest at the model's positions; the log and the summary.

@@ -4,10 +4,13 @@
 #![allow(dead_code)]
 
 use nalgebra::Vector3;
+use tsim::dynamics::{DampingTangent, Loads, NewmarkParams, Rayleigh};
 use tsim::model::Model;
 use tsim::record::NoRecorder;
+use tsim::record::{Stage, StageKind};
 use tsim::solve::NewtonSettings;
 use tsim::stage::formfind::SelfEquilibrium;
+use tsim::stage::transient::{Initial, Transient};
 use tsim::stage::{Analysis, Settings};
 use tsim::structure::{State, Structure};
 use tsim::tsm::Elements;
@@ -80,4 +83,23 @@ pub fn reaction_gap(
         worst = worst.max((r - (from_members - applied[c.node][c.axis])).abs());
     }
     worst
+}
+
+/// An undamped Newmark (average acceleration) transient `name` of `steps` steps of `dt`,
+/// never cut, with `loads` and `initial` conditions.
+pub fn transient(name: &str, dt: f64, steps: usize, loads: Loads, initial: Initial) -> Transient {
+    Transient {
+        stage: Stage::new(StageKind::Transient, name),
+        params: NewmarkParams {
+            dt,
+            max_cuts: 0,
+            ..Default::default()
+        },
+        duration: dt * steps as f64,
+        rayleigh: Rayleigh::default(),
+        tangent: DampingTangent::Objective,
+        loads,
+        actuators: Vec::new(),
+        initial,
+    }
 }
