@@ -166,7 +166,7 @@ fn member_rate(model: &Model, states: &[MemberState], rest_rate: &[f64], e: usiz
 }
 
 /// A clustered cable's elastic extension rate R = L̇ − L ρ (L̇ = Σ e_i·w_i, ρ = L̇0/L0 the
-/// rest rate its members share: they are actuated together, `cluster::check_actuators`)
+/// rest rate its members share: they are actuated together, `Model::check_cluster_actuation`)
 /// and its length L.
 fn cable_rate(c: &Cluster, states: &[MemberState], rest_rate: &[f64], w_of: impl Fn(usize) -> Vector3<f64>) -> (f64, f64) {
     let length: f64 = c.members.iter().map(|&m| states[m].length).sum();
