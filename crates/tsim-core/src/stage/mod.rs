@@ -121,7 +121,7 @@ fn require_apart(asm: &crate::tsm::Assembly, stage: &str) -> Result<()> {
 }
 
 /// Refuses `actuators` that change part of a clustered cable of `model` in `stage`
-/// ([`Model::check_cluster_actuation`]).
+/// ([`crate::model::Model::check_cluster_actuation`]).
 fn whole_cables(model: &crate::model::Model, actuators: &[crate::dynamics::Actuator], stage: &str) -> Result<()> {
     model
         .check_cluster_actuation(actuators.iter().map(|a| a.members.as_slice()))
