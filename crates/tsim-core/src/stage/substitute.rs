@@ -48,7 +48,6 @@ impl Materials {
     /// Substitution: the real structure that carries `scale` × the form-found `forces`
     /// (balanced, see [`balanced_forces`]) in the form-found shape `found`.
     pub fn substitute(&self, model: &Model, found: &State, forces: &[f64], scale: f64) -> Result<Structure> {
-        check_clusters(model, &self.laws)?;
         let forces = cluster_tensions(model, forces)?;
         let sub = substitute(model, &found.positions, &forces, self.laws.clone(), scale)?;
         self.structure(model, sub.elements.rest)
