@@ -115,11 +115,7 @@ fn cluster_columns(g: &mut Dims, record: &ModelRecord, chunk: usize) -> Result<V
     )?;
     let pulleys: Vec<String> = clusters
         .iter()
-        .flat_map(|c| {
-            c.nodes[1..c.members.len()]
-                .iter()
-                .map(move |&n| format!("{}.{}", c.id, model.nodes[n].id))
-        })
+        .flat_map(|c| c.pulleys().iter().map(move |&n| format!("{}.{}", c.id, model.nodes[n].id)))
         .collect();
     g.labels(
         "pulley",
@@ -268,7 +264,8 @@ impl Series {
         }
         let actuated = layout.actuated;
         columns.extend(member_and_energy_columns(&g, !folding, actuated, chunk)?);
-        let clusters = record.model.clusters.clone();
+        // With the rest lengths they are found from: a clustered structure's stages record them.
+        let clusters = if actuated { record.model.clusters.clone() } else { Vec::new() };
         if !clusters.is_empty() {
             columns.extend(cluster_columns(&mut g, record, chunk)?);
         }

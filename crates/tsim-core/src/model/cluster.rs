@@ -70,11 +70,10 @@ impl Cluster {
         })
     }
 
-    /// The slide over each pulley between two of its listed members (`nodes[1..k]`, k
-    /// members), from the rest lengths `reference` to `rest` [m], into `out`: Σ_{i≤j}
-    /// (l0_i − l0_i^ref · L0/L0^ref) over the members up to pulley j, the cable (as rest
-    /// length) that has run over it towards the cable's first member, less a winch's
-    /// uniform change of the whole.
+    /// The slide over each of its [`Self::pulleys`], from the rest lengths `reference` to
+    /// `rest` [m], into `out`: Σ_{i≤j} (l0_i − l0_i^ref · L0/L0^ref) over the members up to
+    /// pulley j, the cable (as rest length) that has run over it towards the cable's first
+    /// member, less a winch's uniform change of the whole.
     pub fn slides(&self, rest: &[f64], reference: &[f64], out: &mut Vec<f64>) {
         let total = |r: &[f64]| self.members.iter().map(|&m| r[m]).sum::<f64>();
         let scale = total(rest) / total(reference);
@@ -85,11 +84,11 @@ impl Cluster {
         }
     }
 
-    /// The pulley nodes: every node the cable passes between two of its members (for a
-    /// closed loop, its first node too).
+    /// The pulley nodes between two of its listed members, `nodes[1..k]` (a loop's first
+    /// node, between its last member and its first, is not one: a loop turning as a whole
+    /// has no origin to count a slide from): where [`Self::slides`] are counted.
     pub fn pulleys(&self) -> &[usize] {
-        let closed = self.nodes.first() == self.nodes.last();
-        &self.nodes[usize::from(!closed)..self.nodes.len() - 1]
+        &self.nodes[1..self.members.len()]
     }
 }
 

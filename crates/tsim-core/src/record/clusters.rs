@@ -63,7 +63,7 @@ impl Observer for ClusterLog {
         let model = record.model;
         self.clusters = model.clusters.clone();
         self.pulleys = (self.clusters.iter())
-            .map(|c| c.nodes[1..c.members.len()].iter().map(|&n| model.nodes[n].id.clone()).collect())
+            .map(|c| c.pulleys().iter().map(|&n| model.nodes[n].id.clone()).collect())
             .collect();
         self.reference = record.rest_lengths.to_vec();
         self.kept = (self.clusters.iter())
