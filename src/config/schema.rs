@@ -138,6 +138,13 @@ pub struct ClusterSpec {
     /// with the next; the first and last may share one (a closed loop). Cables only, of one
     /// material.
     pub members: Vec<String>,
+    /// Capstan friction coefficient μ over every pulley (default 0: the cable slides
+    /// freely). A pulley holds the cable while its tensions on either side stay within
+    /// e^{±μθ} of each other (θ the angle the cable turns there) and lets it slip at that
+    /// ratio. Open cables only; transients with friction run `scheme: newmark` and take no
+    /// β damping.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]

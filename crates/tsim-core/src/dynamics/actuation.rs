@@ -130,6 +130,9 @@ impl Actuation {
     /// trapezoidal work of the nodal forces this is the trapezoidal rule along the step's
     /// straight path in (x, l0): the ledger closes to the rule's O(Δt²).
     pub(super) fn commit(&mut self, asm: &Assembly) -> f64 {
+        // The rest lengths reached: the schedule's, but over clustered cables shared out
+        // (and with friction slipped) by the assembly.
+        self.rest_next.copy_from_slice(&asm.rest);
         asm.energy_rest_derivatives(&mut self.force_next);
         let work = (self.force.iter().zip(&self.force_next))
             .zip(self.rest.iter().zip(&self.rest_next))

@@ -769,7 +769,10 @@ impl<'a> Newmark<'a> {
         std::mem::swap(&mut self.fd, &mut self.next.fd);
         self.next.trial = trial;
         self.time += dt;
-        let actuation = self.actuation.as_mut().map_or(0.0, |a| a.commit(&self.asm));
+        // Pulley friction's dissipation, which the rest lengths' work (Σ q̄ Δl0 over the
+        // actuation's members: all) counted as negative work of the actuators.
+        let dissipated = self.asm.commit();
+        let actuation = self.actuation.as_mut().map_or(0.0, |a| a.commit(&self.asm) + dissipated);
         if let Some(ends) = &mut self.midpoint_ends {
             ends.commit(&self.asm, self.time - 0.5 * dt, self.time);
         }
@@ -780,7 +783,7 @@ impl<'a> Newmark<'a> {
             self.consistent_acceleration();
         }
         let energies = [self.kinetic_energy(), self.asm.strain_energy(), self.asm.contact_energy()];
-        self.ledger.add_step(energies, damping, external, actuation);
+        self.ledger.add_step(energies, damping + dissipated, external, actuation);
     }
 }
 
@@ -894,7 +897,7 @@ impl Residual for StepProblem<'_, '_> {
     }
 
     fn symmetric(&self) -> bool {
-        self.nm.viscous.symmetric() && self.nm.energy_momentum.is_none()
+        self.nm.viscous.symmetric() && self.nm.energy_momentum.is_none() && self.nm.asm.symmetric_tangent()
     }
 
     /// At the midpoint the positions move at half u's rate, and the end ones (which the

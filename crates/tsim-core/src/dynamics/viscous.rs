@@ -227,6 +227,7 @@ impl Viscous {
                 o.symmetric_step = damping.skew_bound(&mut o.node_skew) <= o.symmetric_below * mass_term;
                 if elastic {
                     assemble_tangents(model, dofs, &[(&asm.states, 1.0)], k);
+                    asm.add_friction_tangent(1.0, k);
                 }
                 damping.add_jacobian(c_v, o.symmetric_step, k);
             }
@@ -238,6 +239,9 @@ impl Viscous {
                 };
                 let terms = [(&asm.states[..], 1.0), (states, beta * c_v)];
                 assemble_tangents(model, dofs, &terms[usize::from(!elastic)..], k);
+                if elastic {
+                    asm.add_friction_tangent(1.0, k);
+                }
             }
         }
     }

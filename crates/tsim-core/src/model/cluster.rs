@@ -16,6 +16,9 @@ pub struct Cluster {
     /// first = last for a closed loop): `nodes[j + 1]` joins `members[j]` and
     /// `members[j + 1]`.
     pub nodes: Vec<usize>,
+    /// Capstan friction coefficient μ over every pulley (0: it slides freely;
+    /// `tsm::friction`). An open cable only: a loop with friction is refused.
+    pub friction: f64,
 }
 
 impl Cluster {
@@ -67,7 +70,26 @@ impl Cluster {
             id: id.to_string(),
             members,
             nodes,
+            friction: 0.0,
         })
+    }
+
+    /// This cable with capstan friction `mu` over its pulleys, or why not: μ must be finite
+    /// and not negative, and a loop (whose pulleys close on themselves) has none yet.
+    pub fn with_friction(self, mu: f64) -> Result<Cluster, ModelError> {
+        let error = |reason: String| ModelError::Cluster {
+            cluster: self.id.clone(),
+            reason,
+        };
+        if !(mu.is_finite() && mu >= 0.0) {
+            return Err(error(format!("friction {mu} is not a coefficient: give μ ≥ 0 (0: frictionless)")));
+        }
+        if mu > 0.0 && self.nodes.first() == self.nodes.last() {
+            return Err(error(
+                "a closed loop with friction is not supported: open it at one node (end the cable there) or give friction 0".into(),
+            ));
+        }
+        Ok(Cluster { friction: mu, ..self })
     }
 
     /// The slide over each of its [`Self::pulleys`], from the rest lengths `reference` to

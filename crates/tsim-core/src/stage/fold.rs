@@ -145,6 +145,8 @@ struct Fold<'a> {
     fraction: f64,
     /// Work done by the prescribed displacements (trapezoidal in the reactions).
     work: f64,
+    /// Energy pulley friction dissipated so far [J].
+    dissipated: f64,
     ws: NewtonWorkspace,
     /// du/d(fraction) over the last step that converged: the path's secant (empty before
     /// the first).
@@ -163,6 +165,7 @@ impl<'a> Fold<'a> {
             newton: settings.newton,
             fraction: 0.0,
             work: 0.0,
+            dissipated: 0.0,
             secant: Vec::new(),
         }
     }
@@ -195,6 +198,7 @@ impl<'a> Fold<'a> {
         match newton(&mut self.problem, &mut self.u, &self.newton, length, &mut self.ws) {
             Ok(report) => {
                 self.problem.asm.set_free(&self.u);
+                self.dissipated += self.problem.asm.commit();
                 self.secant.clear();
                 self.secant.extend(self.u.iter().zip(&u_old).map(|(u, u0)| (u - u0) / (to - from)));
                 for (k, &(n, a, start, end)) in self.prescribed.iter().enumerate() {
@@ -379,7 +383,7 @@ impl Analysis for Folding {
                 kinetic: 0.0,
                 strain: fold.problem.asm.strain_energy() - strain0,
                 contact: fold.problem.asm.contact_energy() - contact0,
-                damping: 0.0,
+                damping: fold.dissipated,
                 external: fold.work,
                 actuation: 0.0,
             };
@@ -420,7 +424,7 @@ impl Analysis for Folding {
         summary.equilibrium = frames.check.into();
         summary.height_ratio = height(&fold.problem.asm.x) / h0;
         let end = State {
-            rest_lengths,
+            rest_lengths: fold.problem.asm.carried_rest(rest_lengths),
             ..State::at_rest(fold.problem.asm.x)
         };
         Ok((end, summary))

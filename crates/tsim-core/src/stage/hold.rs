@@ -62,6 +62,8 @@ struct Ledger {
     contact0: f64,
     external: f64,
     actuation: f64,
+    /// Energy pulley friction dissipated [J] ([`crate::tsm::Assembly::commit`]).
+    dissipated: f64,
     /// ∂U/∂l0 of every member at the last converged step [N].
     force: Vec<f64>,
     force_next: Vec<f64>,
@@ -77,6 +79,7 @@ impl Ledger {
             contact0: asm.contact_energy(),
             external: 0.0,
             actuation: 0.0,
+            dissipated: 0.0,
             force_next: force.clone(),
             force,
             rest: asm.rest.clone(),
@@ -84,8 +87,10 @@ impl Ledger {
     }
 
     /// Takes in a converged step from `previous` to `asm`'s positions, the load going
-    /// from `before` to `after` (trapezoidal rule on both works).
-    fn advance(&mut self, asm: &Assembly, previous: &[Vector3<f64>], before: &[Vector3<f64>], after: &[Vector3<f64>]) {
+    /// from `before` to `after` (trapezoidal rule on both works), pulley friction having
+    /// dissipated `dissipated`: the rest lengths' work Σ q̄ Δl0 counts the slip over the
+    /// pulleys too (−`dissipated`), which is not the actuators'.
+    fn advance(&mut self, asm: &Assembly, previous: &[Vector3<f64>], before: &[Vector3<f64>], after: &[Vector3<f64>], dissipated: f64) {
         for n in 0..previous.len() {
             self.external += 0.5 * (before[n] + after[n]).dot(&(asm.x[n] - previous[n]));
         }
@@ -93,6 +98,8 @@ impl Ledger {
         for m in 0..self.rest.len() {
             self.actuation += 0.5 * (self.force[m] + self.force_next[m]) * (asm.rest[m] - self.rest[m]);
         }
+        self.actuation += dissipated;
+        self.dissipated += dissipated;
         std::mem::swap(&mut self.force, &mut self.force_next);
         self.rest.copy_from_slice(&asm.rest);
     }
@@ -102,7 +109,7 @@ impl Ledger {
             kinetic: 0.0,
             strain: asm.strain_energy() - self.strain0,
             contact: asm.contact_energy() - self.contact0,
-            damping: 0.0,
+            damping: self.dissipated,
             external: self.external,
             actuation: self.actuation,
         }
@@ -177,6 +184,7 @@ impl Analysis for Hold {
             ..Default::default()
         };
         let mut applied = base.clone();
+        let mut dissipated = 0.0;
         for step in 1..=self.steps {
             let previous = problem.asm.x.clone();
             let (from, to) = ((step - 1) as f64 / self.steps as f64, step as f64 / self.steps as f64);
@@ -185,9 +193,11 @@ impl Analysis for Hold {
                 problem.asm.set_rest(&rest);
                 problem.load = free_values(&dofs, &load_at(&base, &target, s));
                 let saved = u.clone();
-                newton(&mut problem, &mut u, &settings.newton, model.size(), &mut ws)
+                let iterations = newton(&mut problem, &mut u, &settings.newton, model.size(), &mut ws)
                     .map(|r| r.iterations)
-                    .inspect_err(|_| u.clone_from(&saved))
+                    .inspect_err(|_| u.clone_from(&saved))?;
+                dissipated += problem.asm.commit();
+                Ok(iterations)
             };
             let (iterations, cut) = bisect(from, to, self.max_cuts, &mut solve_to, &|a, b| a + b).map_err(solve_error(
                 name,
@@ -199,7 +209,7 @@ impl Analysis for Hold {
             summary.newton_iterations += iterations;
             summary.cut_steps += usize::from(cut);
             let now = load_at(&base, &target, to);
-            recording.ledger.advance(&problem.asm, &previous, &applied, &now);
+            recording.ledger.advance(&problem.asm, &previous, &applied, &now, std::mem::take(&mut dissipated));
             applied = now;
             for (x, x0) in problem.asm.x.iter().zip(&state.positions) {
                 summary.max_displacement = summary.max_displacement.max((x - x0).norm());
@@ -210,7 +220,7 @@ impl Analysis for Hold {
         let asm = problem.asm;
         let energy = recording.ledger.energy(&asm);
         summary.actuator_work = energy.actuation;
-        summary.energy_balance_error = (energy.strain - energy.external - energy.actuation).abs();
+        summary.energy_balance_error = (energy.strain + energy.damping - energy.external - energy.actuation).abs();
         summary.equilibrium = recording.frames.check.into();
         summary.lowest_stiffness = super::eigen::lowest_stiffness(&asm)?.0;
         let end = State {

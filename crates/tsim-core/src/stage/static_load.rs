@@ -164,6 +164,9 @@ impl TangentSink for WithoutColumn<'_> {
     }
 }
 
+/// The positions a phase reached, and the rest lengths it carries on (`None`: the stage's).
+type PhaseEnd = (Vec<Vector3<f64>>, Option<Vec<f64>>);
+
 /// What the stage carries from step to step.
 struct Steps<'a> {
     stage: &'a Stage,
@@ -174,6 +177,8 @@ struct Steps<'a> {
     applied: Vec<Vector3<f64>>,
     /// Work of the applied loads so far (trapezoidal) [J].
     work: f64,
+    /// Energy pulley friction dissipated so far [J].
+    dissipated: f64,
     start: Vec<Vector3<f64>>,
     strain0: f64,
     contact0: f64,
@@ -189,7 +194,7 @@ impl Steps<'_> {
             kinetic: 0.0,
             strain: asm.strain_energy() - self.strain0,
             contact: asm.contact_energy() - self.contact0,
-            damping: 0.0,
+            damping: self.dissipated,
             external: self.work,
             actuation: 0.0,
         };
@@ -241,6 +246,7 @@ impl Steps<'_> {
             factor = phase.factor(to);
             self.summary.newton_iterations += iterations;
             self.summary.cut_steps += usize::from(cut);
+            self.dissipated += phase.dissipated();
             let applied = base.iter().zip(pattern).map(|(b, p)| b + p * factor).collect();
             self.advance(&phase.asm().x, applied, &previous);
             self.record(phase.asm(), factor, recorder)?;
@@ -249,7 +255,8 @@ impl Steps<'_> {
     }
 
     /// Load control: from `asm`'s state under the current loads to the total load
-    /// `target`, in proportional steps. Returns the final positions.
+    /// `target`, in proportional steps. Returns the final positions and the rest lengths
+    /// to carry on where friction made them history ([`Assembly::carried_rest`]).
     fn load_control(
         &mut self,
         asm: Assembly<'_>,
@@ -257,7 +264,7 @@ impl Steps<'_> {
         steps: usize,
         max_cuts: u32,
         recorder: &mut dyn Recorder,
-    ) -> Result<Vec<Vector3<f64>>> {
+    ) -> Result<PhaseEnd> {
         let dofs = self.dofs;
         let base = self.applied.clone();
         let pattern: Vec<Vector3<f64>> = base.iter().zip(target).map(|(b, t)| t - b).collect();
@@ -272,11 +279,13 @@ impl Steps<'_> {
             },
         };
         self.run_phase(&mut phase, [&base, &pattern], steps, max_cuts, recorder)?;
-        Ok(phase.problem.asm.x)
+        let carried = phase.problem.asm.carried_rest(None);
+        Ok((phase.problem.asm.x, carried))
     }
 
     /// Displacement control: the `pattern` load's factor follows `control` in `steps`
-    /// equal steps, on top of the current loads. Returns the final positions and λ.
+    /// equal steps, on top of the current loads. Returns where it got to (as
+    /// [`Self::load_control`]) and λ.
     fn displacement_control(
         &mut self,
         asm: Assembly<'_>,
@@ -285,7 +294,7 @@ impl Steps<'_> {
         steps: usize,
         max_cuts: u32,
         recorder: &mut dyn Recorder,
-    ) -> Result<(Vec<Vector3<f64>>, f64)> {
+    ) -> Result<(PhaseEnd, f64)> {
         let dofs = self.dofs;
         let model = &self.structure.model;
         let dof = dofs.free(control.node, control.axis).ok_or_else(|| Error::Stage {
@@ -328,7 +337,8 @@ impl Steps<'_> {
             },
         };
         let lambda = self.run_phase(&mut phase, [&base, pattern], steps, max_cuts, recorder)?;
-        Ok((phase.problem.asm.x, lambda))
+        let carried = phase.problem.asm.carried_rest(None);
+        Ok(((phase.problem.asm.x, carried), lambda))
     }
 }
 
@@ -341,6 +351,8 @@ trait Phase {
     fn asm(&self) -> &Assembly<'_>;
     /// The factor on the phase's load pattern at the converged fraction `to`.
     fn factor(&self, to: f64) -> f64;
+    /// The energy pulley friction dissipated since the last call [J].
+    fn dissipated(&mut self) -> f64;
 }
 
 /// The unknowns of a phase and what solves them.
@@ -349,6 +361,8 @@ struct Solver {
     ws: NewtonWorkspace,
     newton: NewtonSettings,
     length: f64,
+    /// What pulley friction dissipated in the steps solved since it was last taken [J].
+    dissipated: f64,
 }
 
 impl Solver {
@@ -364,15 +378,19 @@ impl Solver {
             u,
             newton,
             length: model.size(),
+            dissipated: 0.0,
         }
     }
 
-    /// Newton on `problem` from the current unknowns; restores them on failure.
-    fn solve(&mut self, problem: &mut impl Residual) -> Result<usize, SolveError> {
+    /// Newton on `problem` from the current unknowns, its converged state committed
+    /// (`asm` of it: [`Assembly::commit`]); restores the unknowns on failure.
+    fn solve<'a, P: Residual>(&mut self, problem: &mut P, asm: impl Fn(&mut P) -> &mut Assembly<'a>) -> Result<usize, SolveError> {
         let saved = self.u.clone();
-        newton(problem, &mut self.u, &self.newton, self.length, &mut self.ws)
+        let iterations = newton(problem, &mut self.u, &self.newton, self.length, &mut self.ws)
             .map(|r| r.iterations)
-            .inspect_err(|_| self.u.clone_from(&saved))
+            .inspect_err(|_| self.u.clone_from(&saved))?;
+        self.dissipated += asm(problem).commit();
+        Ok(iterations)
     }
 }
 
@@ -389,7 +407,7 @@ impl Phase for LoadSteps<'_> {
         for ((f, b), p) in self.problem.load.iter_mut().zip(&self.base).zip(&self.pattern) {
             *f = b + p * to;
         }
-        self.solver.solve(&mut self.problem)
+        self.solver.solve(&mut self.problem, |p| &mut p.asm)
     }
 
     fn asm(&self) -> &Assembly<'_> {
@@ -398,6 +416,10 @@ impl Phase for LoadSteps<'_> {
 
     fn factor(&self, to: f64) -> f64 {
         to
+    }
+
+    fn dissipated(&mut self) -> f64 {
+        std::mem::take(&mut self.solver.dissipated)
     }
 }
 
@@ -412,7 +434,7 @@ struct ControlSteps<'a> {
 impl Phase for ControlSteps<'_> {
     fn solve_to(&mut self, to: f64) -> Result<usize, SolveError> {
         self.problem.coordinate = self.start + to * self.displacement;
-        self.solver.solve(&mut self.problem)
+        self.solver.solve(&mut self.problem, |p| &mut p.asm)
     }
 
     fn asm(&self) -> &Assembly<'_> {
@@ -421,6 +443,10 @@ impl Phase for ControlSteps<'_> {
 
     fn factor(&self, _to: f64) -> f64 {
         self.solver.u[self.problem.dof]
+    }
+
+    fn dissipated(&mut self) -> f64 {
+        std::mem::take(&mut self.solver.dissipated)
     }
 }
 
@@ -447,6 +473,7 @@ impl Analysis for StaticLoad {
                 vec![Vector3::zeros(); n]
             },
             work: 0.0,
+            dissipated: 0.0,
             start: state.positions.clone(),
             strain0: asm.strain_energy(),
             contact0: asm.contact_energy(),
@@ -461,29 +488,29 @@ impl Analysis for StaticLoad {
         steps.frames.begin(recorder, &self.stage).map_err(record_error(self.stage.name()))?;
         steps.record(&asm, 0.0, recorder)?;
         let constant = structure.constant_load();
-        let x = match self.control {
+        let (x, carried) = match self.control {
             None => {
                 let total: Vec<Vector3<f64>> = constant.iter().zip(self.pattern(n)).map(|(c, p)| c + p).collect();
                 steps.load_control(asm, &total, self.steps, self.max_cuts, recorder)?
             }
             Some(control) => {
-                let x = if !self.start_loaded && constant.iter().any(|f| *f != Vector3::zeros()) {
+                let (x, carried) = if !self.start_loaded && constant.iter().any(|f| *f != Vector3::zeros()) {
                     steps.load_control(asm, &constant, self.steps, self.max_cuts, recorder)?
                 } else {
-                    asm.x.clone()
+                    (asm.x.clone(), None)
                 };
-                let asm = structure.assembly(&dofs, x, rest);
-                let (x, lambda) = steps.displacement_control(asm, &self.pattern(n), control, self.steps, self.max_cuts, recorder)?;
+                let asm = structure.assembly(&dofs, x, carried.as_deref().unwrap_or(rest));
+                let (reached, lambda) = steps.displacement_control(asm, &self.pattern(n), control, self.steps, self.max_cuts, recorder)?;
                 steps.summary.load_factor = lambda;
-                x
+                reached
             }
         };
         recorder.end_stage(&self.stage).map_err(record_error(self.stage.name()))?;
         steps.summary.equilibrium = steps.frames.check.into();
-        let asm = structure.assembly(&dofs, x, rest);
+        let asm = structure.assembly(&dofs, x, carried.as_deref().unwrap_or(rest));
         steps.summary.lowest_stiffness = super::eigen::lowest_stiffness(&asm)?.0;
         let end = State {
-            rest_lengths: state.rest_lengths.clone(),
+            rest_lengths: carried.or_else(|| state.rest_lengths.clone()),
             ..State::at_rest(asm.x)
         };
         Ok((end, steps.summary))

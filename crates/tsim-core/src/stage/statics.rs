@@ -25,9 +25,16 @@ impl Residual for StaticEquilibrium<'_> {
         self.asm.add_tangent(1.0, k);
     }
 
+    fn symmetric(&self) -> bool {
+        self.asm.symmetric_tangent()
+    }
+
     /// Strain energy (and the contacts' barrier energy) less the work of the load: its
-    /// gradient is −r.
+    /// gradient is −r. None with pulley friction, which dissipates: no potential.
     fn energy(&mut self, u: &[f64]) -> Option<f64> {
+        if self.asm.friction.is_some() {
+            return None;
+        }
         self.asm.set_free(u);
         let work: f64 = self.load.iter().zip(u).map(|(f, ui)| f * ui).sum();
         Some(self.asm.strain_energy() + self.asm.contact_energy() - work)

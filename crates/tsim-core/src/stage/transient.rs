@@ -343,15 +343,25 @@ impl Transient {
     }
 
     /// Why this stage cannot run `model`'s clustered cables, if it cannot: the
-    /// energy–momentum form is not written for them (`tsm::cluster`).
+    /// energy–momentum form is not written for them (`tsm::cluster`); with pulley friction
+    /// (`tsm::friction`), whose slip is committed at a step's end, only Newmark's
+    /// end-of-step equation, and no stiffness-proportional damping (a member's elastic
+    /// rate would need the slip's rate).
     fn cluster_limit(&self, model: &Model) -> Option<String> {
+        use crate::dynamics::Scheme;
         let cluster = &model.clusters.first()?.id;
-        if self.params.scheme == crate::dynamics::Scheme::EnergyMomentum {
-            Some(format!(
+        let friction = model.clusters.iter().find(|c| c.friction > 0.0).map(|c| &c.id);
+        match (self.params.scheme, friction) {
+            (Scheme::EnergyMomentum, _) => Some(format!(
                 "the clustered cable `{cluster}` has no energy–momentum form yet; use `scheme: midpoint` or `newmark`"
-            ))
-        } else {
-            None
+            )),
+            (Scheme::Midpoint, Some(c)) => Some(format!(
+                "the clustered cable `{c}` has pulley friction, which the midpoint rule does not take yet; use `scheme: newmark` (or friction 0)"
+            )),
+            (_, Some(c)) if self.rayleigh.beta != 0.0 => Some(format!(
+                "the clustered cable `{c}` has pulley friction, and stiffness-proportional (β) damping is not written for it yet (a member's elastic rate needs the slip's rate); damp with α only (rayleigh beta 0), or give the cable friction 0"
+            )),
+            _ => None,
         }
     }
 

@@ -1,3 +1,4 @@
+use super::friction::Friction;
 use super::{assemble_tangent, DofMap, Elements, MemberState};
 use crate::contact::{Contact, ContactSet};
 use crate::model::Model;
@@ -34,6 +35,9 @@ pub struct Assembly<'a> {
     /// The contacts, where bodies may touch: their forces are in `p`, their tangent in
     /// [`Self::add_tangent`], their energy in [`Self::contact_energy`].
     pub contact: Option<ContactSet>,
+    /// The clustered cables with friction: the rest lengths their pulleys hold from (those
+    /// of the last [`Self::commit`]) and which pulleys slip at `x`.
+    pub friction: Option<Friction>,
 }
 
 impl<'a> Assembly<'a> {
@@ -45,6 +49,7 @@ impl<'a> Assembly<'a> {
     /// [`Self::new`] with the members' rest lengths `rest` in place of the elements' own
     /// (those a state carries after a stage changed them).
     pub fn with_rest_lengths(model: &'a Model, elements: &'a Elements, dofs: &'a DofMap, x: Vec<Vector3<f64>>, rest: &[f64]) -> Self {
+        let friction = Friction::new(model, elements, &x, rest);
         let mut a = Assembly {
             model,
             elements,
@@ -56,6 +61,7 @@ impl<'a> Assembly<'a> {
             reach: vec![0.0; model.node_count()],
             largest: (0.0, 0.0),
             contact: None,
+            friction,
         };
         a.update();
         a
@@ -91,6 +97,9 @@ impl<'a> Assembly<'a> {
         }
         self.p.fill(0.0);
         super::cluster::distribute(self.model, &self.x, &mut self.rest);
+        if let Some(f) = &mut self.friction {
+            f.slip(self.model, self.elements, &self.x, &mut self.rest);
+        }
         let members = &self.model.members;
         self.states.resize(members.len(), MemberState::default());
         let (mut force, mut stiff) = (0.0_f64, 0.0_f64);
@@ -113,6 +122,31 @@ impl<'a> Assembly<'a> {
             (force, stiff) = (force.max(f), stiff.max(s));
         }
         self.largest = (force, stiff);
+    }
+
+    /// Takes the current state as converged: the rest lengths cables with friction hold
+    /// from in later evaluations. Stages call it once per converged step (a rejected trial
+    /// leaves nothing behind). Returns the energy friction dissipated in the step
+    /// ([`Friction::commit`]; 0 without) [J].
+    pub fn commit(&mut self) -> f64 {
+        match &mut self.friction {
+            Some(f) => f.commit(self.model, self.elements, &self.x, &self.rest),
+            None => 0.0,
+        }
+    }
+
+    /// The rest lengths a stage's end state carries: the current ones where friction made
+    /// them history, else `started` (those it began with, or changed by its own actuators).
+    pub fn carried_rest(&self, started: Option<Vec<f64>>) -> Option<Vec<f64>> {
+        match self.friction {
+            Some(_) => Some(self.rest.clone()),
+            None => started,
+        }
+    }
+
+    /// Whether [`Self::add_tangent`] is symmetric: not where a pulley slips.
+    pub fn symmetric_tangent(&self) -> bool {
+        !self.friction.as_ref().is_some_and(Friction::slipping)
     }
 
     /// Writes the free coordinates `u` into `x` and re-evaluates.
@@ -150,10 +184,19 @@ impl<'a> Assembly<'a> {
             .collect()
     }
 
-    /// Adds `factor`·K_T on the free DOFs, the contacts' tangent included.
+    /// Adds `factor`·K_T on the free DOFs, the contacts' and slipping pulleys' included.
     pub fn add_tangent(&self, factor: f64, k: &mut (impl TangentSink + ?Sized)) {
         assemble_tangent(self.model, &self.states, self.dofs, factor, k);
         self.add_contact_tangent(factor, k);
+        self.add_friction_tangent(factor, k);
+    }
+
+    /// Adds `factor` × what slipping pulleys add to the members' K_T (nothing without):
+    /// for a stage that assembles the members' K_T its own way.
+    pub fn add_friction_tangent(&self, factor: f64, k: &mut (impl TangentSink + ?Sized)) {
+        if let Some(f) = &self.friction {
+            f.add_tangent((self.model, self.elements, self.dofs), &self.x, &self.rest, &self.states, factor, k);
+        }
     }
 
     /// Adds `factor` × the contacts' tangent on the free DOFs (none without contact): for

@@ -18,9 +18,10 @@ use crate::model::{Cluster, Model};
 use nalgebra::{Matrix3, Vector3};
 
 /// Shares each cluster's total rest length Σ l0_i among its members in proportion to their
-/// lengths at `x` ([`self`]: the frictionless slip).
+/// lengths at `x` ([`self`]: the frictionless slip). Cables with friction keep theirs: a
+/// state's are its own, a step's come from [`super::friction`].
 pub fn distribute(model: &Model, x: &[Vector3<f64>], rest: &mut [f64]) {
-    for c in &model.clusters {
+    for c in model.clusters.iter().filter(|c| c.friction == 0.0) {
         let length = |m: usize| {
             let [a, b] = model.members[m].nodes;
             (x[b] - x[a]).norm()
@@ -83,9 +84,10 @@ pub fn add_outer(
 
 /// Adds Σ_t factor_t · (the clusters' tangent less their members' own material blocks),
 /// so that with every member's [`super::member_block`] already added the sink holds each
-/// cable's tangent ([`self`]).
+/// cable's tangent ([`self`]). A cable with friction keeps its members' blocks (pulleys
+/// stuck); the [`super::friction`] state adds what its slipping pulleys change.
 pub fn add_sliding(model: &Model, dofs: &DofMap, terms: &[(&[MemberState], f64)], sink: &mut (impl TangentSink + ?Sized)) {
-    for c in &model.clusters {
+    for c in model.clusters.iter().filter(|c| c.friction == 0.0) {
         for &(states, factor) in terms {
             for &m in &c.members {
                 let s = &states[m];

@@ -13,6 +13,7 @@ pub mod cluster;
 mod damping;
 mod dofs;
 mod energy_momentum;
+pub mod friction;
 
 pub use assembly::Assembly;
 pub use damping::{
