@@ -71,7 +71,8 @@ impl ModelSpec {
                 .iter()
                 .map(|id| model.member_set(std::slice::from_ref(id), &[]))
                 .collect::<Result<Vec<_>, _>>()?;
-            let cluster = Cluster::through(&model, &spec.id, members.concat(), &model.clusters)?.with_friction(spec.friction.unwrap_or(0.0))?;
+            let cluster =
+                Cluster::through(&model, &spec.id, members.concat(), &model.clusters)?.with_friction(spec.friction.unwrap_or(0.0))?;
             model.clusters.push(cluster);
         }
         model.validate()?;

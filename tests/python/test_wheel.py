@@ -128,6 +128,9 @@ API_SCRIPT = textwrap.dedent(
     ring = {"top_ring": ["ct0", "ct1", "ct2"]}
     clustered = dict(cfg, name="clustered", model=tsim.model(**arrays, clusters=ring))
     assert clustered["model"]["clusters"] == [{"id": "top_ring", "members": ["ct0", "ct1", "ct2"]}]
+    # With capstan friction: the mapping form.
+    rough = tsim.model(**arrays, clusters={"top_ring": {"members": ["ct0", "ct1", "ct2"], "friction": 0}})["clusters"]
+    assert rough == [{"id": "top_ring", "members": ["ct0", "ct1", "ct2"], "friction": 0.0}]
     loop = tsim.run(clustered, out="runs").result(stage="static")
     # The cable's tension is its first member's; the others carry it to round-off.
     tension = loop["cluster_tension"].values[:, 0]

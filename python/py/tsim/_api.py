@@ -163,7 +163,8 @@ def model(nodes, members, kind, *, node_ids=None, member_ids=None, fix=None, res
     form-finding (NaN: none). member_groups: a mapping from a group name to its members
     (indices or ids). node_groups: the same for nodes (point masses, loads, initial
     conditions). clusters: a mapping from a clustered cable's id to its members (indices
-    or ids) in the order the cable runs through them (docs/config.md, "Clustered cables").
+    or ids) in the order the cable runs through them, or to {"members": ..., "friction":
+    μ} for capstan friction over its pulleys (docs/config.md, "Clustered cables").
     """
     x = np.asarray(nodes, dtype=float)
     if x.ndim != 2 or x.shape[1] != 3:
@@ -201,10 +202,20 @@ def model(nodes, members, kind, *, node_ids=None, member_ids=None, fix=None, res
     if node_groups:
         section["groups"] = {g: [node_ids[i] for i in _indices(v, node_ids, f"node_groups[{g!r}]")] for g, v in node_groups.items()}
     if clusters:
-        section["clusters"] = [
-            {"id": c, "members": [member_ids[j] for j in _indices(v, member_ids, f"clusters[{c!r}]")]} for c, v in clusters.items()
-        ]
+        section["clusters"] = [_cluster(c, v, member_ids) for c, v in clusters.items()]
     return section
+
+
+def _cluster(name, given, member_ids):
+    """One `model.clusters` entry from a member list or {"members", "friction"}."""
+    spec = dict(given) if isinstance(given, dict) else {"members": given}
+    unknown = set(spec) - {"members", "friction"}
+    if unknown or "members" not in spec:
+        raise ValueError(f"clusters[{name!r}]: a member list or {{'members': [...], 'friction': mu}}, not keys {sorted(spec)}")
+    entry = {"id": name, "members": [member_ids[j] for j in _indices(spec["members"], member_ids, f"clusters[{name!r}]")]}
+    if "friction" in spec:
+        entry["friction"] = float(spec["friction"])
+    return entry
 
 
 def _names(given, default, what):

@@ -209,7 +209,9 @@ impl Analysis for Hold {
             summary.newton_iterations += iterations;
             summary.cut_steps += usize::from(cut);
             let now = load_at(&base, &target, to);
-            recording.ledger.advance(&problem.asm, &previous, &applied, &now, std::mem::take(&mut dissipated));
+            recording
+                .ledger
+                .advance(&problem.asm, &previous, &applied, &now, std::mem::take(&mut dissipated));
             applied = now;
             for (x, x0) in problem.asm.x.iter().zip(&state.positions) {
                 summary.max_displacement = summary.max_displacement.max((x - x0).norm());

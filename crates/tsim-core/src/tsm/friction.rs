@@ -47,7 +47,13 @@ impl Friction {
             slip: model
                 .clusters
                 .iter()
-                .map(|c| if c.friction > 0.0 { vec![0; c.members.len() - 1] } else { Vec::new() })
+                .map(|c| {
+                    if c.friction > 0.0 {
+                        vec![0; c.members.len() - 1]
+                    } else {
+                        Vec::new()
+                    }
+                })
                 .collect(),
         })
     }
