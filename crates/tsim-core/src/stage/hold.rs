@@ -62,8 +62,10 @@ struct Ledger {
     contact0: f64,
     external: f64,
     actuation: f64,
-    /// Energy pulley friction dissipated [J] ([`crate::tsm::Assembly::commit`]).
+    /// Energy pulley friction dissipated [J] ([`crate::tsm::Assembly::commit`]): taken
+    /// in, and in the sub-steps since the last step taken in.
     dissipated: f64,
+    pending: f64,
     /// ∂U/∂l0 of every member at the last converged step [N].
     force: Vec<f64>,
     force_next: Vec<f64>,
@@ -80,6 +82,7 @@ impl Ledger {
             external: 0.0,
             actuation: 0.0,
             dissipated: 0.0,
+            pending: 0.0,
             force_next: force.clone(),
             force,
             rest: asm.rest.clone(),
@@ -88,9 +91,10 @@ impl Ledger {
 
     /// Takes in a converged step from `previous` to `asm`'s positions, the load going
     /// from `before` to `after` (trapezoidal rule on both works), pulley friction having
-    /// dissipated `dissipated`: the rest lengths' work Σ q̄ Δl0 counts the slip over the
-    /// pulleys too (−`dissipated`), which is not the actuators'.
-    fn advance(&mut self, asm: &Assembly, previous: &[Vector3<f64>], before: &[Vector3<f64>], after: &[Vector3<f64>], dissipated: f64) {
+    /// dissipated `pending`: the rest lengths' work Σ q̄ Δl0 counts the slip over the
+    /// pulleys too (−`pending`), which is not the actuators'.
+    fn advance(&mut self, asm: &Assembly, previous: &[Vector3<f64>], before: &[Vector3<f64>], after: &[Vector3<f64>]) {
+        let dissipated = std::mem::take(&mut self.pending);
         for n in 0..previous.len() {
             self.external += 0.5 * (before[n] + after[n]).dot(&(asm.x[n] - previous[n]));
         }
@@ -184,7 +188,6 @@ impl Analysis for Hold {
             ..Default::default()
         };
         let mut applied = base.clone();
-        let mut dissipated = 0.0;
         for step in 1..=self.steps {
             let previous = problem.asm.x.clone();
             let (from, to) = ((step - 1) as f64 / self.steps as f64, step as f64 / self.steps as f64);
@@ -196,7 +199,7 @@ impl Analysis for Hold {
                 let iterations = newton(&mut problem, &mut u, &settings.newton, model.size(), &mut ws)
                     .map(|r| r.iterations)
                     .inspect_err(|_| u.clone_from(&saved))?;
-                dissipated += problem.asm.commit();
+                recording.ledger.pending += problem.asm.commit();
                 Ok(iterations)
             };
             let (iterations, cut) = bisect(from, to, self.max_cuts, &mut solve_to, &|a, b| a + b).map_err(solve_error(
@@ -209,9 +212,7 @@ impl Analysis for Hold {
             summary.newton_iterations += iterations;
             summary.cut_steps += usize::from(cut);
             let now = load_at(&base, &target, to);
-            recording
-                .ledger
-                .advance(&problem.asm, &previous, &applied, &now, std::mem::take(&mut dissipated));
+            recording.ledger.advance(&problem.asm, &previous, &applied, &now);
             applied = now;
             for (x, x0) in problem.asm.x.iter().zip(&state.positions) {
                 summary.max_displacement = summary.max_displacement.max((x - x0).norm());
