@@ -366,3 +366,37 @@ def test_a_stage_list_writes_one_group_per_entry(tsim_bin, tmp_path):
     assert stages == ["formfinding", "gravity", "modes", "quake", "decay"]
     summary = json.loads((case / "outcome.json").read_text())["summary"]
     assert {g: summary[g]["kind"] for g in kinds} == kinds
+
+
+def test_clustered_cables_replay_their_tension_and_slides(tsim_bin, tmp_path):
+    """configs/examples/capstan.yaml (a rope with friction over a drum of pulleys): the
+    replay's `/tsim/clusters` carries, with every scene of a stage that records rest
+    lengths, each cable's tension and its slide over each pulley, equal to result.h5's
+    `cluster_tension` and `pulley_slide` at the same steps; with friction the tension is the
+    largest span's."""
+    config = ROOT / "configs/examples/capstan.yaml"
+    subprocess.run([tsim_bin, "run", config, "--out", tmp_path], check=True, capture_output=True)
+    case = next(tmp_path.rglob("result.h5")).parent
+    with open(case / "replay.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        schemas = {ch.topic: summary.schemas[ch.schema_id].name for ch in summary.channels.values()}
+        cables, members = defaultdict(dict), defaultdict(list)
+        for _, channel, _, m in reader.iter_decoded_messages():
+            if channel.topic == "/tsim/clusters":
+                cables[m.stage][m.step] = m.cables
+            elif channel.topic == "/tsim/members":
+                members[m.stage].append(m.step)
+    assert schemas["/tsim/clusters"] == "cables.Cables"
+    with h5py.File(case / "result.h5") as f:
+        for stage in ["pull", "reel", "drop"]:
+            g = f[stage]
+            assert sorted(cables[stage]) == sorted(members[stage]), stage
+            pulleys = [p.decode() for p in g["pulley"][:]]
+            rope = [i for i, m in enumerate(g["member"][:]) if m.decode().startswith("c")]
+            for step, (cable,) in cables[stage].items():
+                assert cable.id == "rope"
+                assert cable.tension == g["cluster_tension"][step, 0] == g["member_force"][step, rope].max()
+                assert [f"rope.{p.node}" for p in cable.pulleys] == pulleys
+                np.testing.assert_array_equal([p.slide for p in cable.pulleys], g["pulley_slide"][step])
+        assert np.abs(f["pull/pulley_slide"][-1]).max() > 1e-3, "the rope slipped round the drum"

@@ -353,7 +353,7 @@ impl Series {
             next().extend_from_slice(rest);
             next().push(e.actuation);
             if !self.clusters.is_empty() {
-                next().extend(self.clusters.iter().map(|c| f.forces[c.members[0]]));
+                next().extend(self.clusters.iter().map(|c| c.tension(f.forces)));
                 let slides = next();
                 self.clusters.iter().for_each(|c| c.slides(rest, &self.reference_rest, slides));
             }

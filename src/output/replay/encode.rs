@@ -214,6 +214,29 @@ pub(super) mod msg {
     pub struct StageStart {
         pub name: String,
     }
+
+    #[derive(foxglove::Encode)]
+    pub struct PulleySlide {
+        /// The pulley's node id.
+        pub node: String,
+        /// Rest length run over it towards the cable's first member [m].
+        pub slide: f64,
+    }
+
+    #[derive(foxglove::Encode)]
+    pub struct Cable {
+        pub id: String,
+        /// The cable's tension (with friction, its largest span's) [N].
+        pub tension: f64,
+        pub pulleys: Vec<PulleySlide>,
+    }
+
+    #[derive(foxglove::Encode, Default)]
+    pub struct Cables {
+        pub stage: String,
+        pub step: u64,
+        pub cables: Vec<Cable>,
+    }
 }
 
 pub(super) fn prost_len(entity: &SceneEntity) -> usize {

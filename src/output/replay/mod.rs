@@ -16,6 +16,9 @@
 //! - `/tsim/members` (`memberforces.MemberForces`): every member's id and force; in a Plot
 //!   panel, `/tsim/members.members[:]{id=="strut0_0"}.force`.
 //! - `/tsim/stage` (`stagestart.StageStart`): one message at the start of each stage.
+//! - `/tsim/clusters` (`cables.Cables`), a model with clustered cables only: each cable's
+//!   tension and its slide over each pulley (`cables.rs`), with the scene in every stage
+//!   that records rest lengths.
 //!
 //! Scene, energy and members are logged together at every recorded step of a time-stepping
 //! stage, thinned to `outputs.replay_rate` frames per simulated second (its first and last
@@ -39,6 +42,7 @@
 //! Log times are strictly increasing on every topic: a computed time that does not exceed
 //! the previous one is moved 1 ns past it.
 
+mod cables;
 mod clock;
 mod encode;
 mod scene;
@@ -47,6 +51,7 @@ mod tests;
 
 use crate::model::MemberKind;
 use crate::record::{Energy, FormFindRecord, Frame, ModelRecord, Nearest, Outcome, RecordResult, Recorder, Stage};
+use cables::CableReplay;
 use clock::Clock;
 use encode::{encode_lines, msg, prost_len, put_varint, MemberRecords, NodeRecords};
 use foxglove::messages::{line_primitive, LinePrimitive, Point3, Pose, Quaternion, SceneEntity, SceneUpdate, TextPrimitive, Timestamp};
@@ -108,6 +113,8 @@ pub struct McapRecorder {
     /// end, so that a replay always shows where a stage ends. Its buffers are reused.
     held: HeldFrame,
     holding: bool,
+    /// The clustered cables' topic (none without).
+    cables: Option<CableReplay>,
 }
 
 /// A frame kept for [`McapRecorder::end_stage`].
@@ -121,6 +128,7 @@ struct HeldFrame {
     energy: Energy,
     nearest: Option<Nearest>,
     contacts: Vec<ContactArrow>,
+    rest: Option<Vec<f64>>,
 }
 
 struct Channels {
@@ -181,6 +189,7 @@ impl McapRecorder {
             logged_at: None,
             held: HeldFrame::default(),
             holding: false,
+            cables: None,
         })
     }
 
@@ -214,6 +223,16 @@ impl McapRecorder {
         head.encode(&mut self.buf).map_err(|e| e.to_string())?;
         self.buf.extend_from_slice(self.member_records.with_forces(forces));
         self.write_buf(self.channels.members, ns)
+    }
+
+    /// `/tsim/clusters` at a state with rest lengths `rest` (none: no message, as for a
+    /// stage that does not record them, or a model without clustered cables).
+    fn log_cables(&mut self, stage: &Stage, step: usize, ns: u64, forces: &[f64], rest: Option<&[f64]>) -> Result<(), Error> {
+        let (Some(cables), Some(rest)) = (&mut self.cables, rest) else {
+            return Ok(());
+        };
+        let (channel, message) = (cables.channel, cables.message(stage, step, forces, rest));
+        self.log(channel, ns, &message)
     }
 
     fn log_stage(&mut self, stage: &Stage, t: f64) -> Result<(), Error> {
@@ -379,6 +398,7 @@ impl McapRecorder {
             h.forces.extend_from_slice(frame.forces);
             h.contacts.clear();
             h.contacts.extend(contacts);
+            h.rest = frame.rest_lengths.map(<[f64]>::to_vec);
             return Ok(());
         }
         self.logged_at = Some(frame.time);
@@ -386,7 +406,8 @@ impl McapRecorder {
         self.nearest = nearest;
         self.contacts.clear();
         self.contacts.extend(contacts);
-        self.log_state(&stage, frame.step, ns, frame.positions, frame.forces, Some(frame.energy))
+        self.log_state(&stage, frame.step, ns, frame.positions, frame.forces, Some(frame.energy))?;
+        self.log_cables(&stage, frame.step, ns, frame.forces, frame.rest_lengths)
     }
 
     /// Logs the stage's last frame if [`Self::record_frame`] held it back.
@@ -400,6 +421,7 @@ impl McapRecorder {
         self.nearest = h.nearest;
         std::mem::swap(&mut self.contacts, &mut h.contacts);
         let logged = self.log_state(stage, h.step, ns, &h.positions, &h.forces, Some(h.energy));
+        let logged = logged.and_then(|()| self.log_cables(stage, h.step, ns, &h.forces, h.rest.as_deref()));
         self.held = h;
         logged
     }
@@ -423,6 +445,11 @@ impl Recorder for McapRecorder {
             .iter()
             .map(|n| n.support.iter().filter(|&&s| s).count())
             .collect();
+        if !record.model.clusters.is_empty() {
+            let writer = self.writer.as_mut().ok_or("MCAP recorder already finished")?;
+            let topic = channel::<msg::Cables>(writer, "/tsim/clusters")?;
+            self.cables = Some(CableReplay::new(record, topic));
+        }
         self.node_size = node_size(record.model);
         self.nodes = NodeRecords::new(&supports, self.node_size);
         let fixed = supports.iter().filter(|&&s| s == 3).count();

@@ -106,6 +106,17 @@ impl Cluster {
         }
     }
 
+    /// The cable's tension from every member's `forces` [N]: the one its members carry
+    /// (its first's) without friction; with friction, whose pulleys hold different tensions
+    /// either side (up to e^{μθ} apart), the largest of its spans'.
+    pub fn tension(&self, forces: &[f64]) -> f64 {
+        if self.friction == 0.0 {
+            forces[self.members[0]]
+        } else {
+            self.members.iter().map(|&m| forces[m]).fold(f64::NEG_INFINITY, f64::max)
+        }
+    }
+
     /// The pulley nodes between two of its listed members, `nodes[1..k]` (a loop's first
     /// node, between its last member and its first, is not one: a loop turning as a whole
     /// has no origin to count a slide from): where [`Self::slides`] are counted.

@@ -81,7 +81,7 @@ impl Observer for ClusterLog {
 
     fn frame(&mut self, frame: &Frame) {
         for ((c, kept), pulleys) in self.clusters.iter().zip(&mut self.kept).zip(&self.pulleys) {
-            let tension = frame.forces[c.members[0]];
+            let tension = c.tension(frame.forces);
             if tension > kept.max_tension {
                 (kept.max_tension, kept.max_tension_stage, kept.max_tension_step) = (tension, self.stage.name().into(), frame.step);
             }

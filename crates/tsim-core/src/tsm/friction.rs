@@ -20,8 +20,9 @@ use crate::model::{Cluster, Model};
 use nalgebra::{DMatrix, DVector, Vector3};
 
 /// Relative size of a tension-ratio violation (of the cable's largest tension) below which
-/// a pulley counts as in its cone: a few hundred ulps, so that a state solved on the cone's
-/// edge (to round-off) is not taken as past it.
+/// a pulley counts as in its cone: a few thousand ulps, so that a state solved on the
+/// cone's edge (to round-off) is not taken as past it, while 1e-12 of a tension is far
+/// below any force tolerance Newton is run to.
 const CONE_TOLERANCE: f64 = 1e-12;
 
 /// The friction state of a structure's clustered cables with μ > 0.
@@ -205,7 +206,9 @@ impl<'a> Cable<'a> {
         slip.fill(0);
         let mut l0 = start.to_vec();
         // Each pass changes one pulley's state; a pulley leaves the active set only when its
-        // slip turned back, so twice the pulleys bounds the passes of any sane state.
+        // slip turned back, so twice the pulleys bounds the passes of any sane state. Should
+        // a state cycle past that, the last pass's distribution stands and Newton, whose
+        // residual it is, does not converge on it (the step is cut).
         for _ in 0..=2 * slip.len() + 2 {
             l0.copy_from_slice(start);
             for (r, t) in groups(slip) {
@@ -337,8 +340,9 @@ impl<'a> Cable<'a> {
 }
 
 /// The angle θ a cable through `a`, `p`, `b` turns through at `p` [rad], and its gradient
-/// over the three nodes. θ has no gradient where the cable runs straight (it is |angle|
-/// there); that point gets none, where the capstan ratio is 1 in any case.
+/// over the three nodes. θ has no gradient where the cable runs straight or turns right
+/// back (sin θ = 0: θ is |angle| or π − |angle| there, not differentiable); those points get
+/// none, as a one-sided choice.
 fn wrap_angle(a: Vector3<f64>, p: Vector3<f64>, b: Vector3<f64>) -> (f64, [Vector3<f64>; 3]) {
     let (u, w) = (p - a, b - p);
     let (lu, lw) = (u.norm(), w.norm());
