@@ -481,6 +481,73 @@ fn reeled_capstan_ledger_splits_winch_and_friction() {
     );
 }
 
+/// Folding and eigen commit and read the pulleys' state as statics does. The capstan's end
+/// pulled down by prescribed displacement (a `folding` stage of 30 steps) to where the
+/// `pull` left it ends in the same state (every tension within 1e-9 of the pull's end:
+/// both are the full-slip state of that drop, which the closed form fixes whatever the
+/// path). And an `eigen` stage after the pull takes the pulleys as stuck (small vibrations
+/// do not overcome friction): each end node bounces on its spring and its span alone,
+/// ω² = (k_spring + k_span)/m (k = EA/l0 at the pull's rest lengths, m the 10 kg and the
+/// members' lumped halves), to 1e-9.
+#[test]
+fn folding_and_eigen_read_the_pulleys_like_statics() {
+    let pulled = pull(&capstan());
+    let (_, pulled_forces, x, ..) = pulled.frames.last().unwrap().clone();
+    let drop = -1.0 - x[9].z;
+    let text = std::fs::read_to_string(CAPSTAN).unwrap();
+    let stages = format!(
+        "  - name: fold\n    from: equilibrium\n    folding:\n      steps: 30\n      prescribe:\n        - {{ group: end, axis: z, displacement: {} }}\n  - name: modes\n    from: pull\n    eigen: {{}}\n",
+        -drop
+    );
+    let text = text.replace("  - name: reel\n", &format!("{stages}  - name: reel\n"));
+    let cfg = tsim::config::parse_case(&text, CAPSTAN).unwrap_or_else(|e| panic!("{e}"));
+    let folded = run(&cfg, "fold");
+    let (_, forces, ..) = folded.frames.last().unwrap();
+    for (f, p) in forces.iter().zip(&pulled_forces).skip(1).take(8) {
+        assert!((f - p).abs() <= 1e-9 * p, "folded {f} against pulled {p}");
+    }
+    let mut modes = Modes::default();
+    tsim::pipeline::run_case(&cfg, &mut modes).unwrap_or_else(|e| panic!("{e}"));
+    let rest = modes.rest_after_pull;
+    let k = |m: usize| EA / rest[m];
+    // Masses are lumped from the rest lengths the structure starts with (1 m / 1.01 for the
+    // springs and the end spans), 1000 kg/m³ × 1e-4 m².
+    let mass = 10.0 + 0.5 * 1000.0 * 1e-4 * 2.0 / 1.01;
+    let mut expected = [(k(0) + k(1)) / mass, (k(8) + k(9)) / mass];
+    expected.sort_by(f64::total_cmp);
+    eprintln!("ω² {:?} against stuck {expected:?}", modes.omega2);
+    for (w, e) in modes.omega2.iter().zip(&expected) {
+        assert!((w - e).abs() <= 1e-9 * e, "ω² {w} against the stuck pulleys' {e}");
+    }
+}
+
+/// The `modes` stage's ω² and the rest lengths at the end of the `pull`.
+#[derive(Default)]
+struct Modes {
+    stage: String,
+    omega2: Vec<f64>,
+    rest_after_pull: Vec<f64>,
+}
+
+impl Recorder for Modes {
+    fn begin_stage(&mut self, stage: &Stage, _: &tsim::record::Constraints) -> RecordResult {
+        self.stage = stage.name().to_string();
+        Ok(())
+    }
+
+    fn frame(&mut self, f: &Frame) -> RecordResult {
+        if self.stage == "pull" {
+            self.rest_after_pull = f.rest_lengths.expect("a clustered structure's frames carry rest lengths").to_vec();
+        }
+        Ok(())
+    }
+
+    fn eigen(&mut self, record: &tsim::record::EigenRecord) -> RecordResult {
+        self.omega2 = record.omega2.to_vec();
+        Ok(())
+    }
+}
+
 /// Friction that cannot be run is refused with the place and the fix: a negative μ and a
 /// closed loop with friction at load (`file:line` of `model.clusters[0]`), the midpoint
 /// rule and β damping when the transient runs (naming the cable and what to use).
