@@ -8,36 +8,18 @@
 
 mod common;
 
-use common::assert_field_errors;
+use common::{assert_field_errors, cable, node, Dense};
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use tsim::dynamics::Loads;
 use tsim::law::{ForceLaw, LinearElastic, OgdenCord};
-use tsim::model::{Cluster, Member, MemberKind, Model, Node};
+use tsim::model::{Cluster, Member, Model, Node};
 use tsim::record::{Frame, RecordResult, Recorder, Stage};
-use tsim::solve::TangentSink;
 use tsim::stage::transient::Initial;
 use tsim::stage::{Analysis, Settings};
 use tsim::structure::{State, Structure};
 use tsim::tsm::{Assembly, DofMap, Elements};
-
-fn node(id: &str, xyz: [f64; 3], support: [bool; 3]) -> Node {
-    Node {
-        id: id.into(),
-        xyz: Vector3::from(xyz),
-        support,
-    }
-}
-
-fn cable(id: &str, nodes: [usize; 2]) -> Member {
-    Member {
-        id: id.into(),
-        nodes,
-        kind: MemberKind::Cable,
-        groups: vec![],
-    }
-}
 
 /// A model of `nodes` and cables `members`, the cables `clustered` (member indices in
 /// order) one cluster `c`.
@@ -54,39 +36,11 @@ fn model(nodes: Vec<Node>, members: Vec<Member>, clustered: Vec<usize>) -> Model
     m
 }
 
-/// K_T on the free DOFs, dense.
-struct Dense(Vec<Vec<f64>>);
-
-impl TangentSink for Dense {
-    fn add(&mut self, row: usize, col: usize, value: f64) {
-        self.0[row][col] += value;
-    }
-}
-
-/// A cable zig-zagging from a support over three free pulley nodes to another support, with
-/// an off-cable spring on each pulley so that it stands, at a shape away from equilibrium.
+/// The zig-zag cable of `common::zigzag` (frictionless) with `law`, rest lengths 10 %
+/// under the lengths, the cluster's shared out unevenly (the first evaluation
+/// redistributes them).
 fn zigzag(law: Arc<dyn ForceLaw>) -> (Model, Elements, Vec<Vector3<f64>>) {
-    let fixed = [true; 3];
-    let nodes = vec![
-        node("a", [0.0, 0.0, 0.0], fixed),
-        node("p1", [0.7, 0.3, 0.9], [false; 3]),
-        node("p2", [1.5, -0.2, 0.1], [false; 3]),
-        node("p3", [2.1, 0.4, 1.2], [false; 3]),
-        node("b", [3.0, 0.1, 0.2], fixed),
-        node("g", [1.4, 2.0, -1.0], fixed),
-    ];
-    let members = vec![
-        cable("s0", [0, 1]),
-        cable("s1", [2, 1]), // against the cable's direction: orientation must not matter
-        cable("s2", [2, 3]),
-        cable("s3", [3, 4]),
-        cable("k1", [1, 5]),
-        cable("k2", [2, 5]),
-        cable("k3", [3, 5]),
-    ];
-    let m = model(nodes, members, vec![0, 1, 2, 3]);
-    // Rest lengths 10 % under the lengths, the cluster's shared out unevenly (the first
-    // evaluation redistributes them).
+    let (m, moved) = common::zigzag(0.0);
     let x = m.positions();
     let rest = m
         .members
@@ -95,11 +49,6 @@ fn zigzag(law: Arc<dyn ForceLaw>) -> (Model, Elements, Vec<Vector3<f64>>) {
         .map(|(k, mem)| 0.9 * (x[mem.nodes[1]] - x[mem.nodes[0]]).norm() * if k < 4 { 1.0 + 0.05 * k as f64 } else { 1.0 })
         .collect();
     let elements = Elements { laws: vec![law; 7], rest };
-    let moved = x
-        .iter()
-        .enumerate()
-        .map(|(n, p)| p + Vector3::new(0.03, -0.02, 0.05) * (n as f64).sin())
-        .collect();
     (m, elements, moved)
 }
 
@@ -134,34 +83,20 @@ fn cluster_tangent_and_force_are_derivatives() {
             tensions.iter().all(|&t| (t - tensions[0]).abs() <= 1e-12 * t.abs() && t > 0.0),
             "{name}: one tension {tensions:?}"
         );
-        let n = dofs.len();
-        let mut k = Dense(vec![vec![0.0; n]; n]);
-        asm.add_tangent(1.0, &mut k);
         let h = 1e-6;
-        let at = |i: usize, d: f64| {
-            let mut a = Assembly::new(&m, &elements, &dofs, x.clone());
-            let mut u = a.free_coordinates();
-            u[i] += d;
-            a.set_free(&u);
-            a
-        };
-        let scale = k.0.iter().flatten().fold(0.0_f64, |s, v| s.max(v.abs()));
-        let mut worst = (0.0_f64, 0.0_f64);
-        for j in 0..n {
-            let (plus, minus) = (at(j, h), at(j, -h));
-            for i in 0..n {
-                let fd = (plus.p_free(i) - minus.p_free(i)) / (2.0 * h);
-                worst.0 = worst.0.max((fd - k.0[i][j]).abs() / scale);
-            }
+        let mut energy_gap = 0.0_f64;
+        let (_, worst) = common::tangent_check(&m, &elements, &x, h, |j, plus, minus| {
             let energy = (plus.strain_energy() - minus.strain_energy()) / (2.0 * h);
-            worst.1 = worst.1.max((energy - asm.p_free(j)).abs() / tensions[0]);
-        }
+            energy_gap = energy_gap.max((energy - asm.p_free(j)).abs() / tensions[0]);
+        });
         assert!(
-            worst.0 < 1e-7,
-            "{name}: K_T against differences of p: {:.2e} of the largest entry",
-            worst.0
+            worst < 1e-7,
+            "{name}: K_T against differences of p: {worst:.2e} of the largest entry"
         );
-        assert!(worst.1 < 1e-7, "{name}: p against differences of U: {:.2e} of the tension", worst.1);
+        assert!(
+            energy_gap < 1e-7,
+            "{name}: p against differences of U: {energy_gap:.2e} of the tension"
+        );
     }
 }
 

@@ -9,13 +9,11 @@
 mod common;
 
 use nalgebra::Vector3;
-use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::sync::Arc;
 use tsim::law::{ForceLaw, LinearElastic, OgdenCord};
-use tsim::model::{Cluster, Member, MemberKind, Model, Node};
+use tsim::model::Model;
 use tsim::record::{Frame, RecordResult, Recorder, Stage};
-use tsim::solve::TangentSink;
 use tsim::tsm::{Assembly, DofMap, Elements};
 
 const CAPSTAN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/examples/capstan.yaml");
@@ -235,74 +233,17 @@ fn friction_vanishing_is_the_frictionless_cable() {
     }
 }
 
-fn node(id: &str, xyz: [f64; 3], support: [bool; 3]) -> Node {
-    Node {
-        id: id.into(),
-        xyz: Vector3::from(xyz),
-        support,
-    }
-}
-
-fn cable(id: &str, nodes: [usize; 2]) -> Member {
-    Member {
-        id: id.into(),
-        nodes,
-        kind: MemberKind::Cable,
-        groups: vec![],
-    }
-}
-
-/// K_T on the free DOFs, dense.
-struct Dense(Vec<Vec<f64>>);
-
-impl TangentSink for Dense {
-    fn add(&mut self, row: usize, col: usize, value: f64) {
-        self.0[row][col] += value;
-    }
-}
-
-/// A cable with friction μ = 0.3 zig-zagging from a support over three free pulley nodes
-/// (springs to a fixed node hold them) to another support, committed at rest lengths
-/// shared out so unevenly that, at the moved shape, some pulleys slip and one sticks.
+/// The zig-zag cable of `common::zigzag` with friction μ = 0.3 and `law`, committed at
+/// rest lengths shared out so unevenly that, at the moved shape, some pulleys slip and one
+/// sticks.
 fn zigzag(law: Arc<dyn ForceLaw>) -> (Model, Elements, Vec<Vector3<f64>>) {
-    let fixed = [true; 3];
-    let nodes = vec![
-        node("a", [0.0, 0.0, 0.0], fixed),
-        node("p1", [0.7, 0.3, 0.9], [false; 3]),
-        node("p2", [1.5, -0.2, 0.1], [false; 3]),
-        node("p3", [2.1, 0.4, 1.2], [false; 3]),
-        node("b", [3.0, 0.1, 0.2], fixed),
-        node("g", [1.4, 2.0, -1.0], fixed),
-    ];
-    let members = vec![
-        cable("s0", [0, 1]),
-        cable("s1", [2, 1]), // against the cable's direction: orientation must not matter
-        cable("s2", [2, 3]),
-        cable("s3", [3, 4]),
-        cable("k1", [1, 5]),
-        cable("k2", [2, 5]),
-        cable("k3", [3, 5]),
-    ];
-    let mut m = Model {
-        nodes,
-        members,
-        node_groups: BTreeMap::new(),
-        clusters: Vec::new(),
-    };
-    let c = Cluster::through(&m, "c", vec![0, 1, 2, 3], &[]).and_then(|c| c.with_friction(0.3));
-    m.clusters.push(c.unwrap_or_else(|e| panic!("{e}")));
-    m.validate().unwrap();
+    let (m, moved) = common::zigzag(0.3);
     let x = m.positions();
     let stretch = [0.90, 0.97, 0.91, 0.80, 0.9, 0.9, 0.9];
     let rest = (m.members.iter().zip(stretch))
         .map(|(mem, s)| s * (x[mem.nodes[1]] - x[mem.nodes[0]]).norm())
         .collect();
     let elements = Elements { laws: vec![law; 7], rest };
-    let moved = x
-        .iter()
-        .enumerate()
-        .map(|(n, p)| p + Vector3::new(0.03, -0.02, 0.05) * (n as f64).sin())
-        .collect();
     (m, elements, moved)
 }
 
@@ -335,27 +276,13 @@ fn friction_tangent_is_the_derivative_of_the_force() {
             "{name}: slipping and stuck pulleys: {slip:?}"
         );
         assert!(!asm.symmetric_tangent(), "{name}: a slipping pulley's tangent is not symmetric");
-        let n = dofs.len();
-        let mut k = Dense(vec![vec![0.0; n]; n]);
-        asm.add_tangent(1.0, &mut k);
-        let h = 1e-6;
-        let at = |i: usize, d: f64| {
-            let mut a = Assembly::new(&m, &elements, &dofs, x.clone());
-            let mut u = a.free_coordinates();
-            u[i] += d;
-            a.set_free(&u);
-            assert_eq!(a.friction.as_ref().unwrap().slip[0], slip, "{name}: the same pulleys slip at ± h");
-            a
-        };
-        let scale = k.0.iter().flatten().fold(0.0_f64, |s, v| s.max(v.abs()));
-        let mut worst = 0.0_f64;
-        for j in 0..n {
-            let (plus, minus) = (at(j, h), at(j, -h));
-            for i in 0..n {
-                let fd = (plus.p_free(i) - minus.p_free(i)) / (2.0 * h);
-                worst = worst.max((fd - k.0[i][j]).abs() / scale);
+        let (k, worst) = common::tangent_check(&m, &elements, &x, 1e-6, |_, plus, minus| {
+            for a in [plus, minus] {
+                assert_eq!(a.friction.as_ref().unwrap().slip[0], slip, "{name}: the same pulleys slip at ± h");
             }
-        }
+        });
+        let n = k.len();
+        let scale = k.iter().flatten().fold(0.0_f64, |s, v| s.max(v.abs()));
         eprintln!("{name}: K_T against differences of p: {worst:.2e} of the largest entry; slip {slip:?}");
         assert!(
             worst < 1e-7,
@@ -363,7 +290,7 @@ fn friction_tangent_is_the_derivative_of_the_force() {
         );
         let skew = (0..n)
             .flat_map(|i| (0..n).map(move |j| (i, j)))
-            .fold(0.0_f64, |s, (i, j)| s.max((k.0[i][j] - k.0[j][i]).abs()));
+            .fold(0.0_f64, |s, (i, j)| s.max((k[i][j] - k[j][i]).abs()));
         assert!(skew > 1e-6 * scale, "{name}: skew part {skew:e} of {scale:e}");
     }
 }

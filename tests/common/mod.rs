@@ -103,3 +103,106 @@ pub fn transient(name: &str, dt: f64, steps: usize, loads: Loads, initial: Initi
         initial,
     }
 }
+
+/// A node `id` at `xyz`, supported where `support` says.
+pub fn node(id: &str, xyz: [f64; 3], support: [bool; 3]) -> tsim::model::Node {
+    tsim::model::Node {
+        id: id.into(),
+        xyz: Vector3::from(xyz),
+        support,
+    }
+}
+
+/// A cable member `id` between `nodes`.
+pub fn cable(id: &str, nodes: [usize; 2]) -> tsim::model::Member {
+    tsim::model::Member {
+        id: id.into(),
+        nodes,
+        kind: tsim::model::MemberKind::Cable,
+        groups: vec![],
+    }
+}
+
+/// A tangent on the free DOFs, dense.
+pub struct Dense(pub Vec<Vec<f64>>);
+
+impl tsim::solve::TangentSink for Dense {
+    fn add(&mut self, row: usize, col: usize, value: f64) {
+        self.0[row][col] += value;
+    }
+}
+
+/// A cable zig-zagging from a support over three free pulley nodes (p1, p2, p3; members
+/// s0 … s3, s1 against the cable's direction, since orientation must not matter) to
+/// another support, an off-cable spring k1 … k3 from each pulley to a fixed node so that it
+/// stands: the model with the four spans one cluster `c` of capstan friction `friction`,
+/// and a shape moved off its nodes' positions, where the tests evaluate it.
+pub fn zigzag(friction: f64) -> (Model, Vec<Vector3<f64>>) {
+    let fixed = [true; 3];
+    let nodes = vec![
+        node("a", [0.0, 0.0, 0.0], fixed),
+        node("p1", [0.7, 0.3, 0.9], [false; 3]),
+        node("p2", [1.5, -0.2, 0.1], [false; 3]),
+        node("p3", [2.1, 0.4, 1.2], [false; 3]),
+        node("b", [3.0, 0.1, 0.2], fixed),
+        node("g", [1.4, 2.0, -1.0], fixed),
+    ];
+    let members = vec![
+        cable("s0", [0, 1]),
+        cable("s1", [2, 1]),
+        cable("s2", [2, 3]),
+        cable("s3", [3, 4]),
+        cable("k1", [1, 5]),
+        cable("k2", [2, 5]),
+        cable("k3", [3, 5]),
+    ];
+    let mut m = Model {
+        nodes,
+        members,
+        node_groups: Default::default(),
+        clusters: Vec::new(),
+    };
+    let c = tsim::model::Cluster::through(&m, "c", vec![0, 1, 2, 3], &[]).and_then(|c| c.with_friction(friction));
+    m.clusters.push(c.unwrap_or_else(|e| panic!("{e}")));
+    m.validate().unwrap();
+    let moved = (m.nodes.iter().enumerate())
+        .map(|(n, node)| node.xyz + Vector3::new(0.03, -0.02, 0.05) * (n as f64).sin())
+        .collect();
+    (m, moved)
+}
+
+/// K_T of `model` at `x` (dense, on every free DOF) and its largest difference from
+/// central differences (step `h`) of the internal force, relative to K_T's largest entry;
+/// `each(j, plus, minus)` is shown the two assemblies perturbed along free DOF j.
+pub fn tangent_check(
+    model: &Model,
+    elements: &Elements,
+    x: &[Vector3<f64>],
+    h: f64,
+    mut each: impl FnMut(usize, &tsim::tsm::Assembly, &tsim::tsm::Assembly),
+) -> (Vec<Vec<f64>>, f64) {
+    use tsim::tsm::{Assembly, DofMap};
+    let dofs = DofMap::new(model, &[]);
+    let asm = Assembly::new(model, elements, &dofs, x.to_vec());
+    let n = dofs.len();
+    let mut k = Dense(vec![vec![0.0; n]; n]);
+    asm.add_tangent(1.0, &mut k);
+    let at = |i: usize, d: f64| {
+        let mut a = Assembly::new(model, elements, &dofs, x.to_vec());
+        let mut u = a.free_coordinates();
+        u[i] += d;
+        a.set_free(&u);
+        a
+    };
+    let scale = k.0.iter().flatten().fold(0.0_f64, |s, v| s.max(v.abs()));
+    let mut worst = 0.0_f64;
+    for j in 0..n {
+        let (plus, minus) = (at(j, h), at(j, -h));
+        for i in 0..n {
+            let fd = (plus.p_free(i) - minus.p_free(i)) / (2.0 * h);
+            worst = worst.max((fd - k.0[i][j]).abs() / scale);
+        }
+        each(j, &plus, &minus);
+    }
+    (k.0, worst)
+}
