@@ -528,3 +528,41 @@ fn friction_errors_name_the_cable_and_the_fix() {
         "{e}"
     );
 }
+
+/// Friction is objective: the zig-zag cable with slipping and stuck pulleys, moved as a
+/// rigid body (turned 0.7 rad about an oblique axis and shifted), returns the same
+/// distribution of rest lengths, the same pulleys slipping, and internal forces turned with
+/// it (to 1e-12 of the largest: round-off of lengths and angles, which a rigid motion keeps).
+#[test]
+fn friction_is_objective() {
+    let law: Arc<dyn ForceLaw> = Arc::new(LinearElastic {
+        ea: 2.0e5,
+        tension_only: true,
+    });
+    let (m, elements, x) = zigzag(law);
+    let rotation = nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(0.3, -1.0, 0.5)), 0.7);
+    let shift = Vector3::new(2.0, -1.0, 0.5);
+    let moved: Vec<Vector3<f64>> = x.iter().map(|p| rotation * p + shift).collect();
+    let all = DofMap::new(&m, &[]);
+    let (a, b) = (
+        Assembly::new(&m, &elements, &all, x.clone()),
+        Assembly::new(&m, &elements, &all, moved),
+    );
+    let slip = |asm: &Assembly| asm.friction.as_ref().unwrap().slip[0].clone();
+    assert_eq!(slip(&a), slip(&b), "the same pulleys slip");
+    assert!(slip(&a).iter().any(|&s| s != 0), "some pulley slips: {:?}", slip(&a));
+    let largest = a.p.iter().fold(0.0_f64, |s, v| s.max(v.abs()));
+    for n in 0..m.node_count() {
+        let (pa, pb) = (
+            Vector3::from_column_slice(&a.p[3 * n..3 * n + 3]),
+            Vector3::from_column_slice(&b.p[3 * n..3 * n + 3]),
+        );
+        assert!(
+            (rotation * pa - pb).norm() <= 1e-12 * largest,
+            "node {n}: {pa:?} turned against {pb:?}"
+        );
+    }
+    for (ra, rb) in a.rest.iter().zip(&b.rest) {
+        assert!((ra - rb).abs() <= 1e-12 * ra, "rest length {ra} against {rb}");
+    }
+}
