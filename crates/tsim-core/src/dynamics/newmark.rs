@@ -1445,7 +1445,9 @@ mod tests {
 
     /// The same snap with the paper's β K_T(x)·v at the current iterate, whose K_T jumps
     /// where the cable goes taut: the whole step has no root and is cut; the failed
-    /// attempts' work is kept in `retried` (each ran to the iteration cap, 50).
+    /// attempts' work is kept in `retried`. Newton bounces between the two sides, and each
+    /// attempt ends when its residuals repeat (iteration 3: [`crate::solve::SolveError::Cycling`])
+    /// where it used to run to the iteration cap of 50.
     #[test]
     fn failed_step_attempts_are_counted() {
         snapping_cable(DampingTangent::Current, 6, |mut nm, (_, _, dt, _, _)| {
@@ -1453,7 +1455,7 @@ mod tests {
             let r = nm.retried;
             assert!(r.attempts >= 1, "{r:?}");
             assert!(
-                r.iterations >= 50 * r.attempts && r.factorizations >= r.attempts,
+                (3 * r.attempts..50 * r.attempts).contains(&r.iterations) && r.factorizations >= r.attempts,
                 "{r:?}, {report:?}"
             );
         });

@@ -278,6 +278,16 @@ pub enum SolveError {
         /// The free DOF of the largest |r|.
         worst_dof: usize,
     },
+    /// The iterates bounce between two points whose residuals repeat ([`cycling`]): the
+    /// equation has no root between them, so iterating on cannot help.
+    Cycling {
+        /// Iterations taken.
+        iterations: usize,
+        /// max |r| at the two points [N].
+        residuals: [f64; 2],
+        /// The free DOF of the largest |r| at the last iterate.
+        worst_dof: usize,
+    },
     /// The residual (or the increment) became inf/NaN; `dof`: its first non-finite entry.
     NonFinite {
         /// The iteration it happened in.
@@ -299,7 +309,7 @@ impl SolveError {
     /// pivot), for a caller that knows the model to name.
     pub fn dof(&self) -> Option<usize> {
         match *self {
-            SolveError::NotConverged { worst_dof, .. } => Some(worst_dof),
+            SolveError::NotConverged { worst_dof, .. } | SolveError::Cycling { worst_dof, .. } => Some(worst_dof),
             SolveError::NonFinite { dof, .. } | SolveError::Singular { dof, .. } => dof,
         }
     }
@@ -351,6 +361,15 @@ impl SolveError {
                     at(Some(worst_dof))
                 )
             }
+            SolveError::Cycling {
+                iterations,
+                residuals: [a, b],
+                worst_dof,
+            } => format!(
+                "Newton cycles between two iterates (max|r| {a:.3e} N and {b:.3e} N, by iteration {iterations}): \
+                 the equation jumps between them, e.g. a cable going slack or taut there; largest residual at {}",
+                at(Some(worst_dof))
+            ),
             SolveError::NonFinite { iteration, dof } => {
                 format!(
                     "residual or increment became non-finite at {} in iteration {iteration} (diverged)",
@@ -417,6 +436,12 @@ struct Progress {
     last_moved: f64,
 }
 
+/// [`newton`]'s loop. At the residual's round-off floor a minimization also ends when it
+/// has stalled ([`Progress::stalled`]). Newton's increments shrink quadratically on the way
+/// to a minimum (a 4-strut prism's last ones lower the energy by less than its round-off
+/// too); increments that stop shrinking there are noise through a direction softer than
+/// K's round-off (a tall tower's measure structure, lowest eigenvalue ~1e-17 of its
+/// largest).
 fn iterate(
     problem: &mut impl Residual,
     u: &mut [f64],
@@ -452,12 +477,6 @@ fn iterate(
         ws.history.push(res);
         let tolerance = settings.force_tolerance * scale.force + scale.roundoff;
         let increment = progress.increment;
-        // At the residual's round-off floor a minimization also ends when it has stalled
-        // ([`Progress::stalled`]). Newton's increments shrink quadratically on the way to a
-        // minimum (a 4-strut prism's last ones lower the energy by less than its round-off
-        // too); increments that stop shrinking there are noise through a direction softer
-        // than K's round-off (a tall tower's measure structure, lowest eigenvalue ~1e-17 of
-        // its largest).
         let converged = res <= tolerance
             && settled(settings, res, previous, iteration == cap)
             && (iteration == 0 || increment <= increment_tolerance || progress.stalled);
@@ -469,6 +488,13 @@ fn iterate(
                 iterations: iteration,
                 factorizations: ws.factorizations,
                 residual: res,
+            });
+        }
+        if progress.energy.is_none() && cycling(&ws.history) {
+            return Err(SolveError::Cycling {
+                iterations: iteration,
+                residuals: [ws.history[iteration - 1], res],
+                worst_dof,
             });
         }
         if iteration == cap {
@@ -557,6 +583,28 @@ fn settled(settings: &NewtonSettings, res: f64, previous: f64, at_cap: bool) -> 
 /// An iteration that does not halve the residual has met round-off: Newton near a solution
 /// cuts it far more (quadratically, or [`REUSE_CONTRACTION`]-fold on a held factorization).
 const STALL: f64 = 0.5;
+
+/// Whether the residuals of the last four iterates alternate between two values: Newton
+/// bouncing between the two sides of a jump in r(u), each side's tangent pointing at the
+/// other. Newton is deterministic, so a revisited iterate repeats the cycle to the cap:
+/// a 105 × 105 grid's deployment went on with max|r| 1.361e3 and 5.362e2 N to the cap of
+/// 50 iterations, then cut the step, at two of its first ten steps (the jump: a cable taut
+/// at the step's start damped at β k r while taut and not at all once slack, so at l0
+/// stretching its force jumps by β k r). The step is cut now instead.
+fn cycling(history: &[f64]) -> bool {
+    let [.., a, b, c, d] = history else { return false };
+    same(*a, *c) && same(*b, *d) && !same(*c, *d)
+}
+
+/// Whether two residuals agree to [`CYCLE_MATCH`], relative.
+fn same(a: f64, b: f64) -> bool {
+    (a - b).abs() <= CYCLE_MATCH * a.abs().max(b.abs())
+}
+
+/// An iterate revisited through a floating-point round trip (u + d − d) gets its residual
+/// back to round-off (the grid's cycle: to 1e-10), where an iteration that still moves
+/// changes it by orders of magnitude.
+const CYCLE_MATCH: f64 = 1e-6;
 
 /// Whether an increment of max-norm `increment` at `u` moved no coordinate by more than
 /// [`FROZEN_ULPS`] ulps of the largest one.
@@ -737,6 +785,49 @@ mod tests {
     /// relative asks no more than that.
     fn assert_root(u: f64, a: f64) {
         assert!((u / a.cbrt() - 1.0).abs() < 1e-10, "root {u} of u³ = {a}");
+    }
+
+    /// r(u) = 1 − p(u) with p = u below 0 and 3u + 2 from 0: a jump of 2 at 0 and no
+    /// root. Newton from −1 goes to 1 (|r| 4), back to −1/3 (|r| 4/3), to 1, …: a cycle it
+    /// now reports at its fourth residual instead of iterating to the cap.
+    struct Jump {
+        u: f64,
+    }
+
+    impl Residual for Jump {
+        fn residual(&mut self, u: &[f64], r: &mut [f64]) -> Scale {
+            self.u = u[0];
+            r[0] = 1.0 - if u[0] < 0.0 { u[0] } else { 3.0 * u[0] + 2.0 };
+            Scale {
+                force: 1.0,
+                roundoff: 0.0,
+                frozen: 0.0,
+            }
+        }
+
+        fn tangent(&mut self, k: &mut dyn TangentSink) {
+            k.add(0, 0, if self.u < 0.0 { 1.0 } else { 3.0 });
+        }
+    }
+
+    #[test]
+    fn a_cycle_across_a_jump_is_reported_when_it_repeats() {
+        let mut ws = workspace(TangentUpdate::Full);
+        let settings = NewtonSettings {
+            max_step: 1.0,
+            ..Default::default()
+        };
+        let error = newton(&mut Jump { u: -1.0 }, &mut [-1.0], &settings, 10.0, &mut ws).unwrap_err();
+        let SolveError::Cycling { iterations, residuals, .. } = error else {
+            panic!("{error:?}")
+        };
+        // Iterates −1, 1, −1/3, 1, −1/3: the last four residuals 4, 4/3, 4, 4/3 (to round-off).
+        assert_eq!(iterations, 4);
+        assert!(
+            (residuals[0] - 4.0).abs() < 1e-12 && (residuals[1] - 4.0 / 3.0).abs() < 1e-12,
+            "{residuals:?}"
+        );
+        assert!(error.to_string().starts_with("Newton cycles between two iterates"), "{error}");
     }
 
     #[test]
