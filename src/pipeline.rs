@@ -120,7 +120,6 @@ fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSumma
         structure.struts = None;
     }
     summary.substitution = SubstitutionSummary::new(&structure, &unloaded)?;
-    (summary.substitution).require_stable(cfg.substitution.allow_unstable, cfg.formfinding.is_some())?;
     let plan = cfg.stage_plan(&model)?;
     let analysis = analyse(&structure, &unloaded);
     summary.structure_analysis = rigidity::Summary::new(&analysis);
@@ -134,6 +133,8 @@ fn run_stages(cfg: &CaseConfig, recorder: &mut dyn Recorder) -> Result<CaseSumma
         stage: "structure_analysis".into(),
         source,
     })?;
+    // Refused after the records: the found shape a user must change stays in result.h5.
+    (summary.substitution).require_stable(cfg.substitution.allow_unstable, cfg.formfinding.is_some())?;
     lap(&mut summary, found.stage.name());
     match found.stage.kind {
         StageKind::FormFinding => summary.formfinding = Some(found.summary),

@@ -818,6 +818,15 @@ fn an_unstable_structure_fails_at_substitution() {
             && reason.contains("`substitution.prestress_scale`"),
         "{reason}"
     );
+    // The refused structure stays on record, so that the user can look at what to change:
+    // result.h5 holds the model (its rest lengths) and the form-found shape.
+    let h5 = dir.join("small").join(o[0]["id"].as_str().unwrap()).join("result.h5");
+    let (shape, rest): (Vec<f64>, Vec<f64>) = with_h5(&h5, |f| {
+        let read = |name: &str| f.dataset(name).unwrap().read_raw::<f64>().unwrap();
+        (read("formfinding/position"), read("model/rest_length"))
+    });
+    assert_eq!(shape.len(), 3 * 6, "the prism's 6 nodes");
+    assert!(shape.iter().chain(&rest).all(|x| x.is_finite()) && rest.len() == 12);
 }
 
 /// A resume checks what it trusts: a truncated result.h5, a deleted replay.mcap and a
