@@ -789,7 +789,7 @@ mod tests {
 
     /// r(u) = 1 − p(u) with p = u below 0 and 3u + 2 from 0: a jump of 2 at 0 and no
     /// root. Newton from −1 goes to 1 (|r| 4), back to −1/3 (|r| 4/3), to 1, …: a cycle it
-    /// now reports at its fourth residual instead of iterating to the cap.
+    /// now reports at iteration 4 instead of iterating to the cap.
     struct Jump {
         u: f64,
     }
