@@ -2,7 +2,8 @@
 //! n × n quadruplex grid (member blocks k e eᵀ plus a mass-like diagonal, so neither
 //! factorization pivots), factored by tsim's `SparseSolver` with Cholesky and with LU.
 //! Prints one JSON line per factorization kind: DOF, symbolic time, median factor and
-//! solve times, and the Cholesky factor's size (`SparseSolver::stats`).
+//! solve times (one right-hand side, and 16 as one block: `solve_columns`), and the
+//! Cholesky factor's size (`SparseSolver::stats`).
 //!
 //! Usage: bench_factor N [REPEATS] [--amd]  (`--amd`: faer's AMD ordering instead of
 //! tsim's nested dissection)
@@ -50,7 +51,7 @@ fn main() {
     };
     let mut rhs = vec![1.0; dofs.len()];
     for symmetric in [true, false] {
-        let (mut factor, mut solve) = (Vec::new(), Vec::new());
+        let (mut factor, mut solve, mut solve16) = (Vec::new(), Vec::new(), Vec::new());
         for _ in 0..repeats {
             fill(&mut solver);
             let t = Instant::now();
@@ -60,18 +61,23 @@ fn main() {
             let t = Instant::now();
             solver.solve(&mut rhs).expect("solvable");
             solve.push(t.elapsed().as_secs_f64());
+            let mut block = vec![1.0; dofs.len() * 16];
+            let t = Instant::now();
+            solver.solve_columns(&mut block).expect("solvable");
+            solve16.push(t.elapsed().as_secs_f64());
         }
         let med = |v: &mut Vec<f64>| {
             v.sort_by(f64::total_cmp);
             v[v.len() / 2]
         };
         println!(
-            "{{\"n\": {n}, \"dof\": {}, \"ordering\": \"{}\", \"kind\": \"{}\", \"symbolic_s\": {symbolic:.3}, \"factor_s\": {:.4}, \"solve_s\": {:.4}, {}}}",
+            "{{\"n\": {n}, \"dof\": {}, \"ordering\": \"{}\", \"kind\": \"{}\", \"symbolic_s\": {symbolic:.3}, \"factor_s\": {:.4}, \"solve_s\": {:.4}, \"solve_16_columns_s\": {:.4}, {}}}",
             dofs.len(),
             if amd { "amd" } else { "nested_dissection_or_amd" },
             if symmetric { "cholesky" } else { "lu" },
             med(&mut factor),
             med(&mut solve),
+            med(&mut solve16),
             solver.stats()
         );
     }

@@ -19,6 +19,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
 
 use super::backoff::Backoff;
+use super::low_rank::MOST_NEW;
 use super::small_solve::{cholesky_in_place, cholesky_solve_in_place, SMALL_FACTOR, SMALL_SOLVE};
 
 /// Why a factorization or solve failed.
@@ -125,6 +126,14 @@ pub trait TangentSolver: TangentSink + Send {
     fn cholesky(&mut self) -> bool;
     /// Solves K x = rhs in place (rhs becomes x) with the last factorization.
     fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError>;
+    /// Solves for several right-hand sides at once, `rhs` holding them one after another
+    /// (n entries each). A solver may solve them as a block, which reads its factors once.
+    fn solve_columns(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
+        let n = self.size();
+        rhs.chunks_mut(n).try_for_each(|column| self.solve(column))
+    }
+    /// The matrix's order.
+    fn size(&self) -> usize;
 }
 
 /// Which factorization a solver holds.
@@ -217,6 +226,10 @@ impl TangentSink for DenseSolver {
 impl TangentSolver for DenseSolver {
     fn clear(&mut self) {
         self.k.fill(0.0);
+    }
+
+    fn size(&self) -> usize {
+        self.n
     }
 
     fn cholesky(&mut self) -> bool {
@@ -411,7 +424,8 @@ impl SparseSolver {
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
             symbolic.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+            // Up to a low-rank correction's new columns at once (`solve_columns`).
+            symbolic.solve_in_place_scratch::<f64>(MOST_NEW, Par::Seq),
         ]);
         let l_values = vec![0.0; symbolic.len_val()];
         let values = vec![0.0; row_idx.len()];
@@ -629,6 +643,32 @@ impl TangentSolver for SparseSolver {
             .factorize_numeric_lu(numeric, a, Par::Seq, MemStack::new(mem), Default::default())
             .map_err(|_| singular)?;
         self.factored = Factored::Lu;
+        Ok(())
+    }
+
+    fn size(&self) -> usize {
+        self.col_ptr.len() - 1
+    }
+
+    /// Cholesky's and LDLᵀ's solves take the columns as one block (beyond [`MOST_NEW`]
+    /// columns with a scratch allocated for them); LU's one by one.
+    fn solve_columns(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
+        let n = self.size();
+        let k = rhs.len() / n;
+        let x = faer::MatMut::from_column_major_slice_mut(rhs, n, k);
+        let mut wider;
+        let mem = if k <= MOST_NEW {
+            &mut self.mem
+        } else {
+            wider = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(k, Par::Seq));
+            &mut wider
+        };
+        let stack = MemStack::new(mem);
+        match self.factored {
+            Factored::Cholesky => LltRef::new(&self.symbolic, &self.l_values).solve_in_place_with_conj(Conj::No, x, Par::Seq, stack),
+            Factored::Ldlt => LdltRef::new(&self.symbolic, &self.l_values).solve_in_place_with_conj(Conj::No, x, Par::Seq, stack),
+            _ => return rhs.chunks_mut(n).try_for_each(|column| self.solve(column)),
+        }
         Ok(())
     }
 

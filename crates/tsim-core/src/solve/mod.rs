@@ -7,6 +7,7 @@ mod bisect;
 mod dense_eigen;
 mod eigen;
 mod linear;
+mod low_rank;
 mod newton;
 pub mod ordering;
 pub mod small_solve;

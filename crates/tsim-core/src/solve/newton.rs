@@ -1,5 +1,6 @@
 use super::backoff::Backoff;
 use super::linear::{dof_text, ratio_text, DenseSolver, LinearError, SparseSolver, Sparsity, TangentSink, TangentSolver};
+use super::low_rank::LowRank;
 
 /// Convergence settings of the Newton-Raphson driver (one struct for every stage).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
@@ -37,7 +38,10 @@ pub struct NewtonSettings {
 /// stays a good approximate inverse: reusing it (modified Newton) turns most iterations
 /// into a residual evaluation and two triangular solves. The reuse is guarded: as soon as
 /// an iteration reduces the residual less than [`REUSE_CONTRACTION`]-fold, the tangent is
-/// rebuilt and factored at the current iterate, which is then a full Newton iteration.
+/// rebuilt and factored at the current iterate, which is then a full Newton iteration —
+/// or, with the sparse solver, where the held factorization is off because a few bar
+/// elements switched (cables slack or taut), corrected for those elements by rank-one
+/// updates (`low_rank.rs`), the cheaper of the two.
 /// A solve whose held factorization failed so makes the next ones start fresh for a while
 /// (`NewtonWorkspace::held`, an exponential back-off).
 /// The converged point meets the same tolerances either way.
@@ -122,6 +126,10 @@ pub struct NewtonWorkspace {
     pub energies: Vec<f64>,
     /// Factorizations of the last solve, so far (a failed solve's too: [`Self::last_effort`]).
     factorizations: usize,
+    /// Rank-one corrections of the held factorization for elements that switched since
+    /// (see `low_rank.rs`): with a sparse solver that reuses factorizations only (a dense
+    /// one factors in about the time a correction takes to find).
+    low_rank: Option<LowRank>,
     /// The Newton direction, a trial point of the line search and its correction.
     d: Vec<f64>,
     trial: Vec<f64>,
@@ -138,15 +146,24 @@ impl NewtonWorkspace {
         transient: bool,
         sparsity: impl FnOnce() -> Sparsity<P>,
     ) -> Self {
-        let solver: Box<dyn TangentSolver> = match settings.linear_solver {
-            LinearSolverChoice::Dense => Box::new(DenseSolver::new(n)),
-            LinearSolverChoice::Auto if n <= DENSE_LIMIT => Box::new(DenseSolver::new(n)),
-            _ => Box::new(SparseSolver::new(n, sparsity())),
+        let dense = match settings.linear_solver {
+            LinearSolverChoice::Dense => true,
+            LinearSolverChoice::Auto => n <= DENSE_LIMIT,
+            LinearSolverChoice::Sparse => false,
+        };
+        let reuse = settings.tangent.reuses(transient);
+        let mut low_rank = None;
+        let solver: Box<dyn TangentSolver> = if dense {
+            Box::new(DenseSolver::new(n))
+        } else {
+            let sparse = SparseSolver::new(n, sparsity());
+            low_rank = reuse.then(|| LowRank::new(n, sparse.factor_nonzeros()));
+            Box::new(sparse)
         };
         NewtonWorkspace {
             r: vec![0.0; n],
             solver,
-            reuse: settings.tangent.reuses(transient),
+            reuse,
             minimize: false,
             shift: 0.0,
             factored: false,
@@ -154,6 +171,7 @@ impl NewtonWorkspace {
             history: Vec::with_capacity(64),
             energies: Vec::with_capacity(64),
             factorizations: 0,
+            low_rank,
             d: vec![0.0; n],
             trial: vec![0.0; n],
             correction: vec![0.0; n],
@@ -507,7 +525,8 @@ fn iterate(
                 worst_dof,
             });
         }
-        if !(ws.reuse && ws.factored && res <= REUSE_CONTRACTION * previous) {
+        let contracting = ws.reuse && ws.factored && res <= REUSE_CONTRACTION * previous;
+        if !contracting && !correct_held(problem, ws) {
             if std::mem::take(&mut on_held) {
                 ws.held.record(false);
             }
@@ -524,8 +543,7 @@ fn iterate(
 /// whose shift is relative to `stiffness` (the force scale over the model length).
 fn factor_tangent(problem: &mut impl Residual, ws: &mut NewtonWorkspace, stiffness: f64, minimizing: bool) -> Result<(), SolveError> {
     ws.factored = false;
-    ws.solver.clear();
-    problem.tangent(&mut *ws.solver);
+    assemble_tangent(problem, ws);
     if ws.minimize && problem.symmetric() && minimizing {
         ws.factorizations += shifted_cholesky(ws, stiffness)?;
     } else {
@@ -534,6 +552,26 @@ fn factor_tangent(problem: &mut impl Residual, ws: &mut NewtonWorkspace, stiffne
     }
     ws.factored = true;
     Ok(())
+}
+
+/// Assembles the tangent at the iterate the last residual was evaluated at into the
+/// cleared solver, for a factorization that carries no low-rank correction yet.
+fn assemble_tangent(problem: &mut impl Residual, ws: &mut NewtonWorkspace) {
+    ws.solver.clear();
+    match &mut ws.low_rank {
+        Some(low_rank) => low_rank.assemble_factored(&mut *ws.solver, |k| problem.tangent(k)),
+        None => problem.tangent(&mut *ws.solver),
+    }
+}
+
+/// Where the held factorization has stopped contracting, corrects it for the elements
+/// whose tangent blocks switched since it was factored (`low_rank.rs`); `false` where
+/// there is none to correct, or a factorization is cheaper.
+fn correct_held(problem: &mut impl Residual, ws: &mut NewtonWorkspace) -> bool {
+    match &mut ws.low_rank {
+        Some(low_rank) if ws.factored => low_rank.update(&mut *ws.solver, |k| problem.tangent(k)),
+        _ => false,
+    }
 }
 
 /// Solves for the increment from the residual in `ws.r` and moves `u` along it: by the
@@ -549,6 +587,9 @@ fn step(
 ) -> Result<(), SolveError> {
     ws.d.copy_from_slice(&ws.r);
     ws.solver.solve(&mut ws.d)?;
+    if let Some(low_rank) = &mut ws.low_rank {
+        low_rank.correct(&mut ws.d);
+    }
     let (increment, _) = max_abs(&ws.d).map_err(|dof| SolveError::NonFinite { iteration, dof: Some(dof) })?;
     progress.increment = problem.length_of(&ws.d).unwrap_or(increment);
     match progress.energy {
@@ -719,8 +760,7 @@ fn line_search(problem: &mut impl Residual, u: &mut [f64], e0: f64, ws: &mut New
 /// there; `None` where the tangent at the trial point does not factor.
 fn corrected(problem: &mut impl Residual, ws: &mut NewtonWorkspace) -> Option<f64> {
     problem.residual(&ws.trial, &mut ws.correction);
-    ws.solver.clear();
-    problem.tangent(&mut *ws.solver);
+    assemble_tangent(problem, ws);
     ws.factored = ws.solver.factor(problem.symmetric()).is_ok();
     if !ws.factored || ws.solver.solve(&mut ws.correction).is_err() {
         return None;
