@@ -1,8 +1,8 @@
 //! The sparse path against the dense one, and the matrix-free K·v against the assembled K.
 
-use tsim::config::parse_case;
+use tsim::config::{parse_case, CaseConfig};
 use tsim::model::generate::TowerSpec;
-use tsim::pipeline::run_case;
+use tsim::pipeline::{run_case, CaseSummary};
 use tsim::record::NoRecorder;
 use tsim::solve::{LinearSolverChoice, SparseSolver, TangentSolver};
 use tsim::stage::eigen::tangent_matrix;
@@ -19,20 +19,9 @@ fn sparse_and_dense_paths_agree() {
     let mut cfg = parse_case(&text, "paper.yaml").unwrap();
     cfg.free_vibration = None;
     cfg.deployment.as_mut().unwrap().duration = 0.3;
-    let run = |choice| {
-        let mut c = cfg.clone();
-        c.newton.linear_solver = choice;
-        run_case(&c, &mut NoRecorder).unwrap()
-    };
-    let (dense, sparse) = (run(LinearSolverChoice::Dense), run(LinearSolverChoice::Sparse));
+    let (dense, sparse, gap) = dense_and_sparse(&cfg);
     let (d, s) = (dense.transient("deployment").unwrap(), sparse.transient("deployment").unwrap());
     let height = dense.formfinding.as_ref().unwrap().height;
-    let gap = d
-        .final_positions
-        .iter()
-        .zip(&s.final_positions)
-        .map(|(a, b)| (a - b).norm())
-        .fold(0.0, f64::max);
     assert!(gap <= 1e-8 * height, "sparse and dense deployments differ by {gap:e} m");
     assert!((d.transient.max_kinetic - s.transient.max_kinetic).abs() <= 1e-8 * d.transient.max_kinetic);
     for t in [&d.transient, &s.transient] {
@@ -40,22 +29,9 @@ fn sparse_and_dense_paths_agree() {
     }
 }
 
-/// A 6 × 6 grid with tension-only steel cables released from a fold (tests/loads.rs: ~2 000
-/// slack/taut switches in 0.2 s), by the dense solver and by the sparse one, which
-/// corrects its held factorization for the cables that switched (solve/low_rank.rs)
-/// instead of factoring again: the same deployment to the Newton tolerance, for fewer
-/// factorizations. Measured: 1 185 iterations / 78 factorizations dense, 1 218 / 53
-/// sparse; end positions 2.4e-11 m apart, final kinetic energies 4.8e-11 of the largest.
-/// Bounds as `sparse_and_dense_paths_agree` (1e-8: the two solvers' paths differ by the
-/// Newton tolerance at each step, 1e-10 relative, over 200 steps).
-#[test]
-fn corrected_factorizations_deploy_as_fresh_ones() {
-    let text = "name: slack\nmodel:\n  grid: { nx: 6, ny: 6 }\nformfinding: {}\n\
-                substitution: { strut: aluminium, cable: steel_cable, prestress_scale: 100.0 }\n\
-                eigen:\n  solver: partial\n  modes: 20\n  rayleigh: { modes: [1, 20], ratios: [0.02, 0.02] }\n\
-                folding:\n  steps: 5\n  prescribe:\n    - { group: top, axis: z, displacement: -0.05 }\n\
-                deployment:\n  dt: 0.001\n  duration: 0.2\n  damped: true\n";
-    let cfg = parse_case(text, "slack.yaml").unwrap_or_else(|e| panic!("{e}"));
+/// `cfg` run with the dense and with the sparse solver, and the largest distance between
+/// their deployments' end positions [m].
+fn dense_and_sparse(cfg: &CaseConfig) -> (CaseSummary, CaseSummary, f64) {
     let run = |choice| {
         let mut c = cfg.clone();
         c.newton.linear_solver = choice;
@@ -69,14 +45,41 @@ fn corrected_factorizations_deploy_as_fresh_ones() {
         .zip(&s.final_positions)
         .map(|(a, b)| (a - b).norm())
         .fold(0.0, f64::max);
-    let kinetic = (d.transient.final_kinetic - s.transient.final_kinetic).abs() / d.transient.max_kinetic;
-    eprintln!(
-        "dense {} iterations / {} factorizations, sparse {} / {}; positions {gap:e} m apart, final kinetic {kinetic:e} of the largest",
-        d.transient.newton_iterations, d.transient.factorizations, s.transient.newton_iterations, s.transient.factorizations
-    );
-    assert!(gap <= 1e-8, "the deployments differ by {gap:e} m");
-    assert!(kinetic <= 1e-8);
-    assert!(s.transient.factorizations < d.transient.factorizations);
+    (dense, sparse, gap)
+}
+
+/// A 6 × 6 grid with tension-only steel cables released from a fold (tests/loads.rs: ~2 000
+/// slack/taut switches in 0.2 s), by the dense solver and by the sparse one, which
+/// corrects its held factorization for the cables that switched (solve/low_rank.rs)
+/// instead of factoring again: the same deployment to the Newton tolerance, for fewer
+/// factorizations, with Newmark and with the energy–momentum scheme (its own member
+/// tangent). Measured: Newmark 1 185 iterations / 78 factorizations dense, 1 218 / 53
+/// sparse, end positions 2.4e-11 m apart, final kinetic energies 4.8e-11 of the largest;
+/// energy–momentum 1 126 / 105 and 1 206 / 61, 2.6e-11 m, 1.6e-11. Bounds as
+/// `sparse_and_dense_paths_agree` (1e-8: the two paths differ by the Newton tolerance at
+/// each step, 1e-10 relative, over 200 steps).
+#[test]
+fn corrected_factorizations_deploy_as_fresh_ones() {
+    for scheme in ["newmark", "energy_momentum"] {
+        let text = format!(
+            "name: slack\nmodel:\n  grid: {{ nx: 6, ny: 6 }}\nformfinding: {{}}\n\
+             substitution: {{ strut: aluminium, cable: steel_cable, prestress_scale: 100.0 }}\n\
+             eigen:\n  solver: partial\n  modes: 20\n  rayleigh: {{ modes: [1, 20], ratios: [0.02, 0.02] }}\n\
+             folding:\n  steps: 5\n  prescribe:\n    - {{ group: top, axis: z, displacement: -0.05 }}\n\
+             deployment:\n  dt: 0.001\n  duration: 0.2\n  damped: true\n  scheme: {scheme}\n"
+        );
+        let cfg = parse_case(&text, "slack.yaml").unwrap_or_else(|e| panic!("{e}"));
+        let (dense, sparse, gap) = dense_and_sparse(&cfg);
+        let (d, s) = (dense.transient("deployment").unwrap(), sparse.transient("deployment").unwrap());
+        let kinetic = (d.transient.final_kinetic - s.transient.final_kinetic).abs() / d.transient.max_kinetic;
+        eprintln!(
+            "{scheme}: dense {} iterations / {} factorizations, sparse {} / {}; positions {gap:e} m apart, final kinetic {kinetic:e} of the largest",
+            d.transient.newton_iterations, d.transient.factorizations, s.transient.newton_iterations, s.transient.factorizations
+        );
+        assert!(gap <= 1e-8, "{scheme}: the deployments differ by {gap:e} m");
+        assert!(kinetic <= 1e-8, "{scheme}");
+        assert!(s.transient.factorizations < d.transient.factorizations, "{scheme}");
+    }
 }
 
 /// block_product (used for the βK damping force without a matrix) equals the
