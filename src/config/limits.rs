@@ -151,9 +151,10 @@ const MEMORY_PER_MEMBER: f64 = 800.0;
 /// a frame when frames are larger (`output::background`, `output::h5`), MCAP's chunk.
 const WRITER_BLOCKS: f64 = 16.0;
 const WRITER_FIXED: f64 = 16e6;
-/// The sparse Cholesky factor and its LU fallback, taken as this many times the tangent's
-/// pattern (fill-in depends on the ordering; the dense stability checks dominate long
-/// before this term does).
+/// The sparse Cholesky factor, its LU fallback and, in time stepping, the held factor's
+/// low-rank corrections (at most nnz(L) values, `solve/low_rank.rs`), taken as this many
+/// times the tangent's pattern (fill-in depends on the ordering; the dense stability
+/// checks dominate long before this term does).
 const SPARSE_FILL: f64 = 20.0;
 /// Bytes of a row of a kept table's CSV at most: two shortest round-trip f64 (24 each at
 /// most, `-1.2345678901234567e-300`), a comma and a newline.
