@@ -5,10 +5,11 @@
 //! of the step matrix or puts it back — with stiffness-proportional damping β c_v k several
 //! times its EA/l — and the held factorization stops contracting the residual. Those are a
 //! few elements among tens of thousands, each a change of rank one (its axial direction;
-//! what else changes is smaller than the member's force over its stiffness). A solve with
-//! the held factors costs about a seventh of a factorization (examples/bench_factor.rs:
-//! 20k DOF 3.5 ms against 31 ms, 100k 33 ms against 232 ms), so a switch of a few elements
-//! is cheaper to correct than to factor again. Newton's contraction test still decides:
+//! what else changes is smaller than the member's force over its stiffness). Solved as one
+//! block, a correction's columns cost ~1/40 of a factorization each at 20k DOF and ~1/50
+//! at 100k ([`MOST_NEW`]), so a switch of tens of elements is cheaper to correct than to
+//! factor again (one solve at a time it would cost 1/7–1/9: why GMRES on the held factors
+//! lost, bench/pipeline.md). Newton's contraction test still decides:
 //! a corrected factorization that does not contract is replaced as before, so the converged
 //! point meets the same tolerances either way.
 //!
@@ -32,9 +33,9 @@ const RANK_CUT: f64 = 0.1;
 /// Most new columns one correction may add. They are solved as one block, which reads the
 /// factors once (examples/bench_factor.rs: 16 columns cost 2.5 single solves), a column
 /// then costing ~1/40 of a factorization at 20k DOF and ~1/50 at 100k, so that 64 cost
-/// about one. Measured (bench/pipeline.md), deployment time without corrections and with
-/// at most 16, 32, 64 new columns: a 47 × 47 grid's first 100 steps 16.9, 13.8, 11.2,
-/// 8.5 s; a 105 × 105 grid's first 10 steps 40.8, 33.8, 32.5, 30.7 s.
+/// about one. Measured (bench/pipeline.md), deployment time: a 47 × 47 grid's first 100
+/// steps 16.9 s without corrections, 11.2 and 8.5 s with at most 32 and 64 new columns; a
+/// 105 × 105 grid's first 10 steps 40.8 s without, 33.8, 32.5, 30.7 s with 16, 32, 64.
 pub(super) const MOST_NEW: usize = 64;
 
 /// Bar elements' 3×3 blocks k (their 6×6 block is [[k, −k], [−k, k]]) as one assembly of
