@@ -3,7 +3,7 @@
 use tsim::config::{parse_case, CaseConfig};
 use tsim::model::generate::TowerSpec;
 use tsim::pipeline::{run_case, CaseSummary};
-use tsim::record::NoRecorder;
+use tsim::record::{Constraints, Energy, Frame, NoRecorder, RecordResult, Recorder, Stage};
 use tsim::solve::{LinearSolverChoice, SparseSolver, TangentSolver};
 use tsim::stage::eigen::tangent_matrix;
 use tsim::stage::measure::MeasureSpec;
@@ -19,7 +19,7 @@ fn sparse_and_dense_paths_agree() {
     let mut cfg = parse_case(&text, "paper.yaml").unwrap();
     cfg.free_vibration = None;
     cfg.deployment.as_mut().unwrap().duration = 0.3;
-    let (dense, sparse, gap) = dense_and_sparse(&cfg);
+    let ([(dense, _), (sparse, _)], gap) = dense_and_sparse(&cfg);
     let (d, s) = (dense.transient("deployment").unwrap(), sparse.transient("deployment").unwrap());
     let height = dense.formfinding.as_ref().unwrap().height;
     assert!(gap <= 1e-8 * height, "sparse and dense deployments differ by {gap:e} m");
@@ -29,23 +29,55 @@ fn sparse_and_dense_paths_agree() {
     }
 }
 
-/// `cfg` run with the dense and with the sparse solver, and the largest distance between
-/// their deployments' end positions [m].
-fn dense_and_sparse(cfg: &CaseConfig) -> (CaseSummary, CaseSummary, f64) {
+/// The deployment's last frame: member forces (elastic + viscous), reactions, energies.
+#[derive(Default)]
+struct LastFrame {
+    deployment: bool,
+    forces: Vec<f64>,
+    reactions: Vec<f64>,
+    energy: Energy,
+}
+
+impl Recorder for LastFrame {
+    fn begin_stage(&mut self, stage: &Stage, _constraints: &Constraints) -> RecordResult {
+        self.deployment = stage.name() == "deployment";
+        Ok(())
+    }
+    fn frame(&mut self, frame: &Frame) -> RecordResult {
+        if self.deployment {
+            self.forces = frame.forces.to_vec();
+            self.reactions = frame.reactions.to_vec();
+            self.energy = frame.energy;
+        }
+        Ok(())
+    }
+}
+
+/// `cfg` run with the dense and with the sparse solver, their deployments' last frames,
+/// and the largest distance between their end positions [m].
+fn dense_and_sparse(cfg: &CaseConfig) -> ([(CaseSummary, LastFrame); 2], f64) {
     let run = |choice| {
         let mut c = cfg.clone();
         c.newton.linear_solver = choice;
-        run_case(&c, &mut NoRecorder).unwrap_or_else(|e| panic!("{e}"))
+        let mut last = LastFrame::default();
+        let summary = run_case(&c, &mut last).unwrap_or_else(|e| panic!("{e}"));
+        (summary, last)
     };
     let (dense, sparse) = (run(LinearSolverChoice::Dense), run(LinearSolverChoice::Sparse));
-    let (d, s) = (dense.transient("deployment").unwrap(), sparse.transient("deployment").unwrap());
+    let (d, s) = (dense.0.transient("deployment").unwrap(), sparse.0.transient("deployment").unwrap());
     let gap = d
         .final_positions
         .iter()
         .zip(&s.final_positions)
         .map(|(a, b)| (a - b).norm())
         .fold(0.0, f64::max);
-    (dense, sparse, gap)
+    ([dense, sparse], gap)
+}
+
+/// max |a − b| over max |b|.
+fn relative_gap(a: &[f64], b: &[f64]) -> f64 {
+    let scale = b.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max) / scale
 }
 
 /// A 6 × 6 grid with tension-only steel cables released from a fold (tests/loads.rs: ~2 000
@@ -54,8 +86,10 @@ fn dense_and_sparse(cfg: &CaseConfig) -> (CaseSummary, CaseSummary, f64) {
 /// instead of factoring again: the same deployment to the Newton tolerance, for fewer
 /// factorizations, with Newmark and with the energy–momentum scheme (its own member
 /// tangent). Measured: Newmark 1 185 iterations / 78 factorizations dense, 1 218 / 53
-/// sparse, end positions 2.4e-11 m apart, final kinetic energies 4.8e-11 of the largest;
-/// energy–momentum 1 126 / 105 and 1 206 / 61, 2.6e-11 m, 1.6e-11. Bounds as
+/// sparse, end positions 2.4e-11 m apart, final kinetic energies 4.8e-11 of the largest,
+/// last member forces 5.0e-9, reactions 1.8e-9, energies (kinetic, strain, damping)
+/// 8.8e-11 of their largest; energy–momentum 1 126 / 105 and 1 206 / 61, 2.6e-11 m,
+/// 1.6e-11, forces 3.6e-9, reactions 1.6e-9, energies 2.0e-10. Bounds as
 /// `sparse_and_dense_paths_agree` (1e-8: the two paths differ by the Newton tolerance at
 /// each step, 1e-10 relative, over 200 steps).
 #[test]
@@ -69,15 +103,27 @@ fn corrected_factorizations_deploy_as_fresh_ones() {
              deployment:\n  dt: 0.001\n  duration: 0.2\n  damped: true\n  scheme: {scheme}\n"
         );
         let cfg = parse_case(&text, "slack.yaml").unwrap_or_else(|e| panic!("{e}"));
-        let (dense, sparse, gap) = dense_and_sparse(&cfg);
+        let ([(dense, dense_last), (sparse, sparse_last)], gap) = dense_and_sparse(&cfg);
         let (d, s) = (dense.transient("deployment").unwrap(), sparse.transient("deployment").unwrap());
         let kinetic = (d.transient.final_kinetic - s.transient.final_kinetic).abs() / d.transient.max_kinetic;
+        let forces = relative_gap(&sparse_last.forces, &dense_last.forces);
+        let reactions = relative_gap(&sparse_last.reactions, &dense_last.reactions);
+        let energy = |e: &Energy| [e.kinetic, e.strain, e.damping];
+        let energies = relative_gap(&energy(&sparse_last.energy), &energy(&dense_last.energy));
         eprintln!(
-            "{scheme}: dense {} iterations / {} factorizations, sparse {} / {}; positions {gap:e} m apart, final kinetic {kinetic:e} of the largest",
+            "{scheme}: dense {} iterations / {} factorizations, sparse {} / {}; positions {gap:e} m apart, final kinetic {kinetic:e} of the largest; member forces {forces:e}, reactions {reactions:e}, energies {energies:e} of the largest",
             d.transient.newton_iterations, d.transient.factorizations, s.transient.newton_iterations, s.transient.factorizations
         );
         assert!(gap <= 1e-8, "{scheme}: the deployments differ by {gap:e} m");
         assert!(kinetic <= 1e-8, "{scheme}");
+        assert!(energies <= 1e-8, "{scheme}: energies {energies:e}");
+        // A member force turns a position gap into force by EA/l: the aluminium struts
+        // make the 2.4e-11 m gap 5e-9 of the largest force; ten times that leaves room
+        // for another machine's round-off.
+        assert!(
+            forces.max(reactions) <= 5e-8,
+            "{scheme}: forces {forces:e}, reactions {reactions:e}"
+        );
         assert!(s.transient.factorizations < d.transient.factorizations, "{scheme}");
     }
 }
