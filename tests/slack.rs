@@ -170,14 +170,19 @@ fn gap(a: &Log, b: &Log, t: f64) -> [f64; 4] {
 /// a kink the scheme integrates at second order; snapping taut is not: a Kelvin–Voigt
 /// cord's force jumps by β k r there. A cable slack at a step's start is damped in it at
 /// the rate that carries that jump's impulse (`tsm::SnapRate`), and the next step starts
-/// from the acceleration just after the jump. Measured, largest differences of successive
-/// runs (ratios):
-/// - t = 0.05 s (end of the pulse): positions 2.57e-6, 6.34e-7, 1.58e-7, 3.91e-8 m (4.05,
-///   4.01, 4.04), forces 1.66, 0.393, 0.107, 0.026 N (4.23, 3.65, 4.08).
-/// - t = 0.2 s, after many snaps: positions 1.59e-5, 3.97e-6, 9.82e-7, 2.46e-7 m (4.01,
-///   4.05, 3.99), forces 5.05, 1.35, 0.356, 0.099 N (3.75, 3.78, 3.59), reactions 3.23,
-///   0.938, 0.237, 0.066 N (3.45, 3.96, 3.59), energies (kinetic, strain, dissipated)
-///   0.0665, 0.0166, 0.0042, 0.0010 J (4.02, 3.96, 4.01).
+/// from the acceleration just after the jump; a cable taut at a step's start is held on
+/// its mean force over the step (`tsm::DampingModulus`'s allowance). Measured, largest
+/// differences of successive runs (ratios):
+/// - t = 0.05 s (end of the pulse): positions 2.61e-6, 6.73e-7, 1.64e-7, 4.09e-8 m (3.87,
+///   4.10, 4.01), forces 1.92, 0.519, 0.120, 0.029 N (3.70, 4.34, 4.10).
+/// - t = 0.2 s, after many snaps: positions 1.58e-5, 3.95e-6, 1.00e-6, 2.50e-7 m (4.00,
+///   3.95, 4.00), forces 3.54, 1.01, 0.233, 0.076 N (3.51, 4.33, 3.05), reactions 3.79,
+///   0.925, 0.216, 0.061 N (4.10, 4.27, 3.57), energies (kinetic, strain, dissipated)
+///   0.0670, 0.0168, 0.0042, 0.0010 J (3.98, 3.96, 4.04).
+///
+/// Before the mean hold, with the held force at −N at the step's end: positions the same
+/// to 3 digits, forces at 0.2 s 5.05, 1.35, 0.356, 0.099 N (3.75, 3.78, 3.59): the mean
+/// hold's force differences are smaller at every Δt, its last ratio lower.
 ///
 /// With each snapping cable undamped until its step ended the ratios at 0.2 s were 2.77,
 /// 3.79, 4.39 (positions) and 0.75, 3.40, 3.87 (forces): first order at the coarse steps;

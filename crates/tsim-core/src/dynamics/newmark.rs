@@ -681,9 +681,13 @@ impl<'a> Newmark<'a> {
         let snap = if self.params.scheme.at_midpoint() {
             SnapRule::AtMidpoint { dt }
         } else {
-            SnapRule::AtEnd { gamma_dt: gamma * dt }
+            SnapRule::AtEnd {
+                gamma_dt: gamma * dt,
+                carry: (1.0 - gamma) / gamma,
+            }
         };
-        if self.viscous.start_step(&self.asm, snap) {
+        let rest_rate = self.actuation.as_ref().map_or(&[][..], |a| &a.rate);
+        if self.viscous.start_step(&self.asm, snap, &self.v, rest_rate) {
             // A cable that snapped taut in the last step, damped on its taut branch from here
             // on: the damping force jumps at this step's start, and the step starts from the
             // acceleration just after (as at an actuator's kink).
@@ -776,11 +780,18 @@ impl<'a> Newmark<'a> {
         if let Some(ends) = &mut self.midpoint_ends {
             ends.commit(&self.asm, self.time - 0.5 * dt, self.time);
         }
+        let rest_rate = self.actuation.as_ref().map_or(&[][..], |a| &a.rate);
         if self.params.scheme.at_midpoint() {
             // The acceleration and damping force at the step's end, where the midpoint rule
             // has none of its own: what the records, the next step's predictor and the
             // next stage start from.
             self.consistent_acceleration();
+        } else if self.viscous.release(&self.asm, &self.v, rest_rate) {
+            // A cable held below −N carried its pull's impulse (`tsm::DampingModulus`): its
+            // force is −N from here on, and the next step starts from the acceleration
+            // with it, as after a snap.
+            self.consistent_acceleration();
+            self.restart_estimate(false);
         }
         let energies = [self.kinetic_energy(), self.asm.strain_energy(), self.asm.contact_energy()];
         self.ledger.add_step(energies, damping + dissipated, external, actuation);
@@ -1120,6 +1131,75 @@ mod tests {
         }
     }
 
+    /// The Newmark step Jacobian where tension-only members taut at the step's start carry
+    /// their allowance ((1 − γ)/γ (N + d) at the start: [`DampingModulus`]): the prism of
+    /// [`step_jacobian_of_held_tension_only_members_matches_finite_differences`] with the
+    /// step started, so that at the trial point members with A > 0 are held at −N − A,
+    /// damped above it, and slack now (damped through l0, or held at −A); exact and
+    /// symmetrized, against central differences as there (1e-3 N from every switch).
+    #[test]
+    fn step_jacobian_with_allowances_matches_finite_differences() {
+        let mut cable = OgdenCord::new(OgdenCord::paper_terms(), 50e-6, 1.0, 0.1);
+        cable.tension_only = true;
+        for symmetric_below in [0.0, f64::INFINITY] {
+            prism_in_motion(DampingTangent::Objective, false, (cable.clone(), 1.0005), |nm| {
+                let v = nm.v.clone();
+                let snap = SnapRule::AtEnd {
+                    gamma_dt: 0.5 * 0.01,
+                    carry: 1.0,
+                };
+                nm.viscous.start_step(&nm.asm, snap, &v, &[]);
+                nm.predict(0.01, &|_, f| f.fill(0.0));
+                let u = off_predictor(nm);
+                StepProblem { nm, dt: 0.01 }.residual(&u, &mut vec![0.0; u.len()]);
+                let (held, damped, through) = allowed_members(nm);
+                assert!(
+                    held >= 1 && damped >= 1 && through >= 1,
+                    "held {held}, damped {damped}, slack now {through}"
+                );
+                assert_step_jacobian(nm, DampingTangent::Objective, symmetric_below);
+            });
+        }
+    }
+
+    /// At `nm`'s current iterate, of the members with an allowance A > 0: how many are held
+    /// at −N − A and how many damped by β k r above it while taut, and how many slack now;
+    /// asserting that each is at least 1e-3 N away from its switch.
+    fn allowed_members(nm: &Newmark) -> (usize, usize, usize) {
+        let asm = &nm.asm;
+        let mut velocities = vec![Vector3::zeros(); asm.model.node_count()];
+        for (i, &vi) in nm.next.v.iter().enumerate() {
+            let (n, a) = asm.dofs.owner(i);
+            velocities[n][a] = vi;
+        }
+        let moduli = moduli(nm);
+        let free: Vec<DampingModulus> = moduli.iter().map(|m| DampingModulus { tension_only: false, ..*m }).collect();
+        let mut unheld = vec![0.0; free.len()];
+        let damping = MemberDamping::Objective {
+            moduli: &free,
+            beta: nm.rayleigh().beta,
+            rest_rate: &[],
+        };
+        member_axial_damping(asm.model, &asm.states, damping, &velocities, &mut unheld);
+        let mut counts = (0, 0, 0);
+        for (e, s) in asm.states.iter().enumerate().filter(|(e, _)| moduli[*e].allowance > 0.0) {
+            let floor = -s.force - moduli[e].allowance;
+            assert!(
+                (unheld[e] - floor).abs() > 1e-3,
+                "member {e} at its switch: {} N",
+                unheld[e] - floor
+            );
+            if s.force == 0.0 {
+                counts.2 += 1;
+            } else if unheld[e] < floor {
+                counts.0 += 1;
+            } else {
+                counts.1 += 1;
+            }
+        }
+        counts
+    }
+
     /// The step Jacobian where cables slack at the step's start snap taut in it, damped at
     /// their snap rate ([`crate::tsm::SnapRate`]): the prism's tension-only rubber at
     /// stretch 0.999 (slack by ~1 mm), so that at the trial point some of those are taut
@@ -1146,10 +1226,14 @@ mod tests {
                     nm.energy_momentum.as_mut().unwrap().start_step(&nm.asm);
                 }
                 let snap = match scheme {
-                    Scheme::Newmark => SnapRule::AtEnd { gamma_dt: 0.5 * 0.01 },
+                    Scheme::Newmark => SnapRule::AtEnd {
+                        gamma_dt: 0.5 * 0.01,
+                        carry: 1.0,
+                    },
                     _ => SnapRule::AtMidpoint { dt: 0.01 },
                 };
-                nm.viscous.start_step(&nm.asm, snap);
+                let v = nm.v.clone();
+                nm.viscous.start_step(&nm.asm, snap, &v, &[]);
                 nm.predict(0.01, &|_, f| f.fill(0.0));
                 let u = off_predictor(nm);
                 StepProblem { nm, dt: 0.01 }.residual(&u, &mut vec![0.0; u.len()]);

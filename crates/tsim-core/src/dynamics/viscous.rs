@@ -37,8 +37,10 @@ pub(super) enum StiffnessTerm {
 /// scheme: where its equation holds and how its velocity update weighs it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum SnapRule {
-    /// Newmark, the equation at the step's end weighed by γ: R = (l − l0)/(γΔt).
-    AtEnd { gamma_dt: f64 },
+    /// Newmark, the equation at the step's end weighed by γ: R = (l − l0)/(γΔt); a held
+    /// member's allowance is `carry` = (1 − γ)/γ times its total force at the step's start
+    /// ([`DampingModulus`]).
+    AtEnd { gamma_dt: f64, carry: f64 },
     /// A midpoint scheme: R = r + (l_n − l0_n)/Δt.
     AtMidpoint { dt: f64 },
 }
@@ -48,7 +50,7 @@ impl SnapRule {
     /// `start_gap` at the step's start.
     fn rate(self, rest: f64, start_gap: f64) -> SnapRate {
         match self {
-            SnapRule::AtEnd { gamma_dt } => SnapRate {
+            SnapRule::AtEnd { gamma_dt, .. } => SnapRate {
                 per_length: 1.0 / gamma_dt,
                 per_rate: 0.0,
                 constant: -rest / gamma_dt,
@@ -74,6 +76,10 @@ pub(super) struct Objective {
     newly_taut: Vec<usize>,
     /// Per member, l − l0 at the step's start [m] (negative where slack).
     start_gap: Vec<f64>,
+    /// Per member, how far below −N the step may hold its damping force
+    /// ([`DampingModulus`]), and a buffer of the members' damping forces.
+    allowance: Vec<f64>,
+    axial: Vec<f64>,
     /// The step's [`SnapRule`]; `None` until a step starts.
     snap: Option<SnapRule>,
     pub(super) moduli: Vec<DampingModulus>,
@@ -107,6 +113,8 @@ impl Viscous {
                 was_taut: vec![true; members],
                 newly_taut: Vec::new(),
                 start_gap: vec![0.0; members],
+                allowance: vec![0.0; members],
+                axial: vec![0.0; members],
                 snap: None,
                 moduli: vec![DampingModulus::default(); members],
                 symmetric_step: false,
@@ -142,11 +150,18 @@ impl Viscous {
     /// Whether some member is damped on its taut branch now that the last equation damped
     /// at its snap rate ([`Self::newly_taut`]): the damping force jumps at the step's start,
     /// and the step should start from the acceleration just after the jump.
-    pub(super) fn start_step(&mut self, asm: &Assembly, snap: SnapRule) -> bool {
+    /// A Newmark step also gives each member pulling at its start, at velocities `v`, its
+    /// allowance ([`DampingModulus`]).
+    pub(super) fn start_step(&mut self, asm: &Assembly, snap: SnapRule, v: &[f64], rest_rate: &[f64]) -> bool {
+        let beta = self.rayleigh.beta;
         match &mut self.term {
             StiffnessTerm::Objective(o) => {
                 o.snap = Some(snap);
-                o.keep_taut(asm) && self.rayleigh.beta != 0.0
+                let jumped = o.keep_taut(asm) && beta != 0.0;
+                if let SnapRule::AtEnd { carry, .. } = snap {
+                    o.allow(asm, v, beta, rest_rate, carry);
+                }
+                jumped
             }
             StiffnessTerm::Tangent(t) if t.which == DampingTangent::LastConverged => {
                 t.states.copy_from_slice(&asm.states);
@@ -155,6 +170,30 @@ impl Viscous {
             }
             StiffnessTerm::Tangent(_) => false,
         }
+    }
+
+    /// At the end of a converged step, `v` its velocities: drops the allowances, so that
+    /// the member forces are the members' own (−N where the equation held one lower, zero
+    /// where one pulling at the step's start ended it slack: that force was the step's
+    /// impulse, [`DampingModulus`]); whether one differs from the force the equation had,
+    /// so that the next step should start from the members' own.
+    pub(super) fn release(&mut self, asm: &Assembly, v: &[f64], rest_rate: &[f64]) -> bool {
+        let beta = self.rayleigh.beta;
+        let StiffnessTerm::Objective(o) = &mut self.term else {
+            return false;
+        };
+        if o.allowance.iter().all(|&a| a == 0.0) {
+            return false;
+        }
+        let mut held = std::mem::take(&mut o.axial);
+        o.at(asm, v, beta, rest_rate).axial_forces(&mut held);
+        o.allowance.fill(0.0);
+        o.update_moduli(asm);
+        let mut own = vec![0.0; held.len()];
+        o.at(asm, v, beta, rest_rate).axial_forces(&mut own);
+        let differ = held.iter().zip(&own).any(|(a, b)| a != b);
+        o.axial = held;
+        differ
     }
 
     /// The members [`Self::start_step`] found taut that were slack at the step before's.
@@ -294,14 +333,39 @@ impl Objective {
         !self.newly_taut.is_empty()
     }
 
+    /// Each tension-only member's allowance for the step: `carry` times its total force
+    /// N + d at the step's start (velocities `v`), where it is taut and pulls; zero where it
+    /// is held or slack ([`DampingModulus`]).
+    fn allow(&mut self, asm: &Assembly, v: &[f64], beta: f64, rest_rate: &[f64], carry: f64) {
+        let mut axial = std::mem::take(&mut self.axial);
+        self.allowance.fill(0.0);
+        self.update_moduli(asm);
+        self.at(asm, v, beta, rest_rate).axial_forces(&mut axial);
+        for (e, (a, d)) in self.allowance.iter_mut().zip(&axial).enumerate() {
+            let m = &self.moduli[e];
+            if m.tension_only && m.snap.is_none() && m.stiffness != 0.0 {
+                *a = carry * (asm.states[e].force + d).max(0.0);
+            }
+        }
+        self.axial = axial;
+        self.update_moduli(asm);
+    }
+
     /// The members' damping moduli at the current states; a tension-only member slack at
-    /// the step's start is damped at its [`SnapRate`] with its taut branch's modulus (at
-    /// l0 while it is still slack).
+    /// the step's start is damped at its [`SnapRate`]; in a Newmark step, one taut at its
+    /// start by its dashpot through the whole step, within its allowance, also where it
+    /// is slack now (so that its force is continuous through l0: [`DampingModulus`]);
+    /// either with its taut branch's modulus (at l0 while it is slack now).
     fn update_moduli(&mut self, asm: &Assembly) {
         let laws = &asm.elements.laws;
         damping_moduli(laws, &asm.rest, &asm.states, &self.taut, &mut self.moduli);
-        let Some(snap) = self.snap else { return };
-        for e in (0..self.taut.len()).filter(|&e| !self.taut[e] && laws[e].tension_only()) {
+        let newmark = matches!(self.snap, Some(SnapRule::AtEnd { .. }));
+        for e in (0..self.taut.len()).filter(|&e| laws[e].tension_only()) {
+            let snap = self.snap.filter(|_| !self.taut[e]);
+            let allowance = self.allowance[e];
+            if snap.is_none() && !(newmark && self.taut[e]) {
+                continue;
+            }
             let (law, l0, s) = (&laws[e], asm.rest[e], &asm.states[e]);
             let (stiffness, curvature) = if law.slack(s.length, l0) {
                 (law.eval(l0, l0).stiffness, 0.0)
@@ -311,7 +375,8 @@ impl Objective {
             self.moduli[e] = DampingModulus {
                 stiffness,
                 curvature,
-                snap: Some(snap.rate(l0, self.start_gap[e])),
+                snap: snap.map(|rule| rule.rate(l0, self.start_gap[e])),
+                allowance,
                 ..self.moduli[e]
             };
         }

@@ -30,10 +30,28 @@ use std::sync::Arc;
 /// while it stays slack and rising continuously from zero as it snaps. No event is located
 /// and no step stopped; the next step starts from the damping force and acceleration just
 /// after the jump (`dynamics::Newmark`).
+///
+/// Holding at −N is a condition on the step's impulse where the scheme weighs the
+/// step's start: Newmark's velocity update takes the damping force as (1 − γ) d_n + γ d_{n+1}.
+/// A cord pulling at the start (N_n + d_n > 0) and held at the end would then keep
+/// (1 − γ) Δt (N_n + d_n) of pull over a step in which it shortens: negative work. Where
+/// the cord's dashpot is faster than the step (β k Δt/m ≫ 1/(1 − γ)) the trapezoidal rule
+/// turns its extension rate over each step, and that pull throws it back slack faster than
+/// it came, step after step (a 105 × 105 grid's deployment gained 36 kJ in four steps;
+/// bench/pipeline.md). So the step's equation may hold it lower, down to −N − `allowance`
+/// with `allowance` = ((1 − γ)/γ)(N_n + d_n): the step's mean force (1 − γ)(N_n + d_n) +
+/// γ (N + d) then never pushes, and where it is held the member shortens over the step
+/// (its mean rate is negative), so its work is dissipative. Such a member is damped by
+/// its dashpot through the whole step, also where it is slack at the step's end (with its
+/// taut branch's modulus; N = 0 there), so that its force has no jump at l0. A step that
+/// ends below −N (or pulling while slack) has carried the pull's impulse; the member's
+/// own force, −N (or 0), is recorded and the next step starts from it (`dynamics::Newmark`
+/// restarts the acceleration, as after a snap). Measured: tests/loads.rs
+/// `a_stiffly_damped_grid_dissipates_over_every_step`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DampingModulus {
     /// dN/dl [N/m]; zero for a member slack now, unless it was at the step's start too
-    /// (`snap`).
+    /// (`snap`) or is in a Newmark step it started taut (`allowance`).
     pub stiffness: f64,
     /// d²N/dl² [N/m²].
     pub curvature: f64,
@@ -42,6 +60,9 @@ pub struct DampingModulus {
     /// Slack at the step's start: damped at this rate instead of r (`stiffness` is then its
     /// taut branch's, at l0 where it is slack now).
     pub snap: Option<SnapRate>,
+    /// How far below −N the step's equation may hold the damping force [N] (≥ 0; zero
+    /// but in a Newmark step whose member pulled at its start).
+    pub allowance: f64,
 }
 
 /// The rate R a member slack at a step's start is damped at, β k max(0, R) along it: an
@@ -92,6 +113,7 @@ pub fn damping_moduli(laws: &[Arc<dyn ForceLaw>], rest: &[f64], states: &[Member
             curvature: if damped { s.curvature } else { 0.0 },
             tension_only: law.tension_only(),
             snap: None,
+            allowance: 0.0,
         };
     }
 }
@@ -120,9 +142,9 @@ fn scatter(dofs: &DofMap, [a, b]: [usize; 2], f: &Vector3<f64>, out: &mut [f64])
 /// up (a cable reeled in at constant stretch strains nothing, one reeled in between fixed
 /// ends is stretched at the rate l l̇0/l0). A rigid motion (v_b − v_a = ω × d) of members
 /// of constant rest length has r = 0 and gets no force; the power dissipated, β k r², is
-/// never negative. A tension-only member's force is held at −N where its total would push
-/// ([`DampingModulus`]); one slack at the step's start is damped at its [`SnapRate`] R,
-/// positive only where it lengthens through l0 in the step (a rigid motion leaves it
+/// never negative. A tension-only member's force is held at −N (less its allowance)
+/// where its total would push ([`DampingModulus`]); one slack at the step's start is
+/// damped at its [`SnapRate`] R, positive only where it lengthens through l0 in the step (a rigid motion leaves it
 /// slack and undamped), so that it too dissipates over the step. For small motions about
 /// a state it is β K_0 v: K_T's geometric part is left out, which is what makes it
 /// objective.
@@ -176,8 +198,9 @@ fn cable_rate(c: &Cluster, states: &[MemberState], rest_rate: &[f64], w_of: impl
 }
 
 /// A member's axial damping force β k r at elastic extension rate `rate`, or −N where a
-/// tension-only member's total N + β k r would push ([`DampingModulus`]); with whether it
-/// is held there. A member snapping taut: β k max(0, R), R its [`SnapRate`].
+/// tension-only member's total N + β k r would push (−N − its allowance:
+/// [`DampingModulus`]); with whether it is held there. A member snapping taut:
+/// β k max(0, R), R its [`SnapRate`].
 #[inline(always)]
 fn axial_damping(s: &MemberState, m: &DampingModulus, beta: f64, rate: f64) -> (f64, bool) {
     if let Some(snap) = &m.snap {
@@ -185,10 +208,18 @@ fn axial_damping(s: &MemberState, m: &DampingModulus, beta: f64, rate: f64) -> (
     }
     let d = beta * m.stiffness * rate;
     if m.tension_only {
-        held_at_no_compression(d, s.force)
+        held_at_no_compression(d, s.force + m.allowance)
     } else {
         (d, false)
     }
+}
+
+/// ∂/∂d of the axial force (N + A) e of a member held at −N − A (A its allowance, a
+/// constant of the step): its tangent block ([`member_block`]) with the geometric part of
+/// N + A.
+fn held_block(s: &MemberState, allowance: f64) -> Matrix3<f64> {
+    let p = Matrix3::identity() - s.dir * s.dir.transpose();
+    member_block(s) + p * (allowance / s.length)
 }
 
 /// A tension-only member's damping force `d`, with elastic force `n`, held at −n where its
@@ -225,6 +256,13 @@ impl ObjectiveDamping<'_> {
         relative(self.dofs, self.v, self.model.members[k].nodes)
     }
 
+    /// Each member's axial damping force [N] into `out` ([`axial_damping`]).
+    pub fn axial_forces(&self, out: &mut [f64]) {
+        for (e, _, s, m, _, rate) in self.members() {
+            out[e] = axial_damping(s, m, self.beta, rate).0;
+        }
+    }
+
     /// out += the damping force on the free DOFs.
     pub fn add_force(&self, out: &mut [f64]) {
         for (_, nodes, s, m, _, rate) in self.members() {
@@ -240,8 +278,8 @@ impl ObjectiveDamping<'_> {
     /// e (P w)ᵀ term), so the step matrix needs a general (LU) factorization. With
     /// `symmetric` that term is replaced by its symmetric part, ½ (e (P w)ᵀ + P w eᵀ): the
     /// symmetric part of the Jacobian, which Cholesky factors (see [`Self::skew_bound`] for
-    /// when it serves). A tension-only member held at d = −N e has the block −k_T, minus
-    /// its elastic tangent block ([`member_block`]: K_0 and K_G), symmetric, free of v.
+    /// when it serves). A tension-only member held at d = −(N + A) e (A its allowance) has
+    /// the block −k_T − A P/l ([`held_block`]), symmetric, free of v.
     /// A member snapping taut at rate R = a l + b r + c ([`SnapRate`]) has, with dR =
     /// a e + b dr, the block β [(a k + b (c_v k − k ρ) + (dk/dl) R) e eᵀ + k (b e (P w)ᵀ +
     /// R P)/l] where R > 0, none where its force is zero.
@@ -254,7 +292,7 @@ impl ObjectiveDamping<'_> {
                 continue;
             }
             if axial_damping(s, m, self.beta, rate).1 {
-                add_member_block(self.dofs, e, nodes, &-member_block(s), sink);
+                add_member_block(self.dofs, e, nodes, &-held_block(s, m.allowance), sink);
                 continue;
             }
             let rho = self.rest_rate.get(e).copied().unwrap_or(0.0);
@@ -388,13 +426,14 @@ impl ObjectiveDamping<'_> {
 
     /// [`Self::add_jacobian`]'s block of a clustered cable: its force d g, d = β k_c D,
     /// has ∂/∂u = β [(k_c' D + k_c (a + b (c_v − ρ))) g gᵀ + b k_c g hᵀ + k_c D H], H the
-    /// members' P_i/l_i blocks (L's Hessian); held at −N, −(N H + (dN/dL) g gᵀ).
+    /// members' P_i/l_i blocks (L's Hessian); held at −N − A, −((N + A) H + (dN/dL) g gᵀ).
     fn add_cable_jacobian(&self, c: &Cluster, c_v: f64, symmetric: bool, sink: &mut (impl TangentSink + ?Sized)) {
         let cable = match self.cable(c) {
             Ok(cable) => cable,
             Err(held) => {
                 if held {
-                    self.add_hessian(c, |s| -s.force, sink);
+                    let allowance = self.moduli[c.members[0]].allowance;
+                    self.add_hessian(c, |s| -(s.force + allowance), sink);
                     let g = cluster::length_gradient(self.model, c, self.states);
                     cluster::add_outer(self.dofs, &g, &g, -cluster::series_stiffness(c, self.states), sink);
                 }
