@@ -71,15 +71,16 @@ pub(super) struct Objective {
     /// current states ([`DampingModulus`]).
     taut: Vec<bool>,
     /// The flags of the step before, to see which members start to be damped on their
-    /// taut branch at this step's start, and those members ([`Viscous::newly_taut`]).
+    /// taut branch at this step's start, and those members ([`Viscous::newly_taut`];
+    /// room for all, so that no step allocates).
     was_taut: Vec<bool>,
     newly_taut: Vec<usize>,
     /// Per member, l − l0 at the step's start [m] (negative where slack).
     start_gap: Vec<f64>,
     /// Per member, how far below −N the step may hold its damping force
-    /// ([`DampingModulus`]), and a buffer of the members' damping forces.
+    /// ([`DampingModulus`]), and two buffers of the members' damping forces.
     allowance: Vec<f64>,
-    axial: Vec<f64>,
+    axial: [Vec<f64>; 2],
     /// The step's [`SnapRule`]; `None` until a step starts.
     snap: Option<SnapRule>,
     pub(super) moduli: Vec<DampingModulus>,
@@ -111,10 +112,10 @@ impl Viscous {
             DampingTangent::Objective => StiffnessTerm::Objective(Objective {
                 taut: vec![true; members],
                 was_taut: vec![true; members],
-                newly_taut: Vec::new(),
+                newly_taut: Vec::with_capacity(members),
                 start_gap: vec![0.0; members],
                 allowance: vec![0.0; members],
-                axial: vec![0.0; members],
+                axial: [vec![0.0; members], vec![0.0; members]],
                 snap: None,
                 moduli: vec![DampingModulus::default(); members],
                 symmetric_step: false,
@@ -185,14 +186,13 @@ impl Viscous {
         if o.allowance.iter().all(|&a| a == 0.0) {
             return false;
         }
-        let mut held = std::mem::take(&mut o.axial);
+        let [mut held, mut own] = std::mem::take(&mut o.axial);
         o.at(asm, v, beta, rest_rate).axial_forces(&mut held);
         o.allowance.fill(0.0);
         o.update_moduli(asm);
-        let mut own = vec![0.0; held.len()];
         o.at(asm, v, beta, rest_rate).axial_forces(&mut own);
         let differ = held.iter().zip(&own).any(|(a, b)| a != b);
-        o.axial = held;
+        o.axial = [held, own];
         differ
     }
 
@@ -337,7 +337,7 @@ impl Objective {
     /// N + d at the step's start (velocities `v`), where it is taut and pulls; zero where it
     /// is held or slack ([`DampingModulus`]).
     fn allow(&mut self, asm: &Assembly, v: &[f64], beta: f64, rest_rate: &[f64], carry: f64) {
-        let mut axial = std::mem::take(&mut self.axial);
+        let mut axial = std::mem::take(&mut self.axial[0]);
         self.allowance.fill(0.0);
         self.update_moduli(asm);
         self.at(asm, v, beta, rest_rate).axial_forces(&mut axial);
@@ -347,7 +347,7 @@ impl Objective {
                 *a = carry * (asm.states[e].force + d).max(0.0);
             }
         }
-        self.axial = axial;
+        self.axial[0] = axial;
         self.update_moduli(asm);
     }
 
