@@ -34,17 +34,22 @@ use tsim::tsm::Elements;
 /// One recorded frame: (stage, time, positions, velocities, energy).
 type Logged = (Stage, f64, Vec<Vector3<f64>>, Vec<Vector3<f64>>, Energy);
 
-/// Every frame of every stage, and the lumped masses of the model record.
+/// Every frame of every stage, and the lumped masses, rest lengths and members (id and
+/// end nodes) of the model record.
 #[derive(Default)]
 struct Log {
     stage: Option<Stage>,
     frames: Vec<Logged>,
     masses: Vec<f64>,
+    rest: Vec<f64>,
+    members: Vec<(String, [usize; 2])>,
 }
 
 impl Recorder for Log {
     fn model(&mut self, record: &ModelRecord) -> RecordResult {
         self.masses = record.masses.to_vec();
+        self.rest = record.rest_lengths.to_vec();
+        self.members = record.model.members.iter().map(|m| (m.id.clone(), m.nodes)).collect();
         Ok(())
     }
     fn begin_stage(&mut self, stage: &Stage, _constraints: &tsim::record::Constraints) -> RecordResult {
@@ -947,6 +952,17 @@ fn a_stiffly_damped_grid_dissipates_over_every_step() {
             deployment.max_mechanical_rise, deployment.max_energy, deployment.cut_steps
         );
         assert_eq!(deployment.cut_steps, 0, "β = {beta}: {deployment:?}");
+        // The summary names the member whose dashpot is fastest against the step: a strut
+        // (EA/l0 = 6.8e8 N/m over ~1 m against the cables' 8e6), β (EA/l0)(1/m_a + 1/m_b) Δt.
+        let fastest = deployment.fastest_dashpot.as_ref().expect("β damping");
+        let e = log.members.iter().position(|(id, _)| *id == fastest.member).expect("a member id");
+        let [a, b] = log.members[e].1;
+        let ratio = beta * 68e9 * 0.01 / log.rest[e] * (1.0 / log.masses[a] + 1.0 / log.masses[b]) * 1e-3;
+        assert!(fastest.member.starts_with("strut"), "{fastest:?}");
+        assert!(
+            (fastest.steps_per_dashpot_time / ratio - 1.0).abs() < 1e-12,
+            "{fastest:?} against {ratio}"
+        );
         // Steps balance forces to 1e-10 of the largest (newton.force_tolerance), so a step's
         // work is exact to about 1e-10 of F·Δu, below 1e-9 of the energy scale here; the
         // failure was 44 J of ~2 kJ.

@@ -218,11 +218,70 @@ pub struct TransientSummary {
     /// step) stays ≤ 1 % to the stage's end [s]; `None` when it ends above 1 %.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub settle_time: Option<f64>,
+    /// The member whose stiffness-proportional damping is fastest against the stage's
+    /// largest step ([`FastestDashpot`]); `None` without β damping.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fastest_dashpot: Option<FastestDashpot>,
     /// Wall time of the stage, recording included [s].
     pub wall_seconds: f64,
     /// Largest out-of-balance over the recorded steps.
     #[serde(flatten)]
     pub equilibrium: EquilibriumSummary,
+}
+
+/// How far a stage's step is from resolving the members' stiffness-proportional damping:
+/// the largest over the members of Δt/τ = β k Δt/m, τ = m/(β k) the time a member's
+/// dashpot (β k, k = dN/dl, a slack cable's taut branch) takes to stop the relative motion
+/// of its ends (m: their reduced mass; a node fixed in every direction counts as
+/// immovable). Above 1/(1 − γ) (2 for Newmark's trapezoidal rule and the midpoint schemes)
+/// the scheme turns the member's extension rate over each step wherever a fast motion
+/// along it is excited (a snap, an impact): its motion stays damped and its work
+/// dissipative, but its recorded viscous force β k l̇ alternates at the step's scale and
+/// converges as Δt halves only for Δt below 2τ (bench/pipeline.md: a 6 × 6 grid with the
+/// Rayleigh β of a 105 × 105 one, up to 917 at 1 ms). Where nothing excites it the force
+/// is smooth (the paper deployment's struts: 4 342 at 0.5 ms, their viscous forces up to
+/// 640 N of 666 N, changing from one step to the next by at most 2.7 % of the largest).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FastestDashpot {
+    /// The member's id.
+    pub member: String,
+    /// Δt/τ at the stage's largest step.
+    pub steps_per_dashpot_time: f64,
+    /// τ [s]: the steps resolve the member's viscous force below 2τ.
+    pub dashpot_time: f64,
+}
+
+impl FastestDashpot {
+    /// At `nm`'s state, β its Rayleigh β and `dt` the largest step; `None` where β = 0.
+    fn of(nm: &Newmark, masses: &[f64], dt: f64) -> Option<Self> {
+        let beta = nm.rayleigh().beta;
+        if beta == 0.0 {
+            return None;
+        }
+        let asm = &nm.asm;
+        let movable = |n: usize| (0..3).any(|ax| asm.dofs.free(n, ax).is_some());
+        let inverse_mass = |n: usize| if movable(n) { 1.0 / masses[n] } else { 0.0 };
+        let (laws, rest) = (&asm.elements.laws, &asm.rest);
+        let tau = |e: usize| {
+            let (s, [a, b]) = (&asm.states[e], asm.model.members[e].nodes);
+            let k = if laws[e].slack(s.length, rest[e]) {
+                laws[e].eval(rest[e], rest[e]).stiffness
+            } else {
+                s.stiffness
+            };
+            1.0 / (beta * k.abs() * (inverse_mass(a) + inverse_mass(b)))
+        };
+        // A massless node (a member of zero density) has no dashpot time: left out.
+        let times = (0..asm.states.len())
+            .map(|e| (e, tau(e)))
+            .filter(|(_, t)| t.is_finite() && *t > 0.0);
+        let (e, tau) = times.min_by(|x, y| x.1.total_cmp(&y.1))?;
+        Some(FastestDashpot {
+            member: asm.model.members[e].id.clone(),
+            steps_per_dashpot_time: dt / tau,
+            dashpot_time: tau,
+        })
+    }
 }
 
 impl TransientSummary {
@@ -634,6 +693,7 @@ impl<'s, 'r> Stepping<'s, 'r> {
         (summary.failed_iterations, summary.failed_factorizations) = (nm.retried.iterations, nm.retried.factorizations);
         (summary.rejected_steps, summary.over_tolerance_steps) = (nm.retried.rejected, nm.retried.over_tolerance);
         summary.settle_time = self.settle.since;
+        summary.fastest_dashpot = FastestDashpot::of(nm, &self.structure.masses, summary.largest_step);
         summary
     }
 }
