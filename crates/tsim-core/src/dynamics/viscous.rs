@@ -81,6 +81,9 @@ pub(super) struct Objective {
     /// ([`DampingModulus`]), and two buffers of the members' damping forces.
     allowance: Vec<f64>,
     axial: [Vec<f64>; 2],
+    /// Whether members taut at the step's start are damped through it as taut, with their
+    /// allowance (a Newmark step, until [`Viscous::release`]).
+    through: bool,
     /// The step's [`SnapRule`]; `None` until a step starts.
     snap: Option<SnapRule>,
     pub(super) moduli: Vec<DampingModulus>,
@@ -116,6 +119,7 @@ impl Viscous {
                 start_gap: vec![0.0; members],
                 allowance: vec![0.0; members],
                 axial: [vec![0.0; members], vec![0.0; members]],
+                through: false,
                 snap: None,
                 moduli: vec![DampingModulus::default(); members],
                 symmetric_step: false,
@@ -158,6 +162,7 @@ impl Viscous {
         match &mut self.term {
             StiffnessTerm::Objective(o) => {
                 o.snap = Some(snap);
+                o.through = matches!(snap, SnapRule::AtEnd { .. });
                 let jumped = o.keep_taut(asm) && beta != 0.0;
                 if let SnapRule::AtEnd { carry, .. } = snap {
                     o.allow(asm, v, beta, rest_rate, carry);
@@ -173,21 +178,23 @@ impl Viscous {
         }
     }
 
-    /// At the end of a converged step, `v` its velocities: drops the allowances, so that
-    /// the member forces are the members' own (−N where the equation held one lower, zero
-    /// where one pulling at the step's start ended it slack: that force was the step's
-    /// impulse, [`DampingModulus`]); whether one differs from the force the equation had,
-    /// so that the next step should start from the members' own.
+    /// At the end of a converged Newmark step, `v` its velocities: ends the members'
+    /// damping through the step and their allowances, so that the member forces are the
+    /// members' own (−N where the equation held one lower, zero where one taut at the
+    /// step's start ended it slack: that force was the step's impulse, [`DampingModulus`]);
+    /// whether one differs from the force the equation had, so that the next step should
+    /// start from the members' own.
     pub(super) fn release(&mut self, asm: &Assembly, v: &[f64], rest_rate: &[f64]) -> bool {
         let beta = self.rayleigh.beta;
         let StiffnessTerm::Objective(o) = &mut self.term else {
             return false;
         };
-        if o.allowance.iter().all(|&a| a == 0.0) {
+        if !o.through {
             return false;
         }
         let [mut held, mut own] = std::mem::take(&mut o.axial);
         o.at(asm, v, beta, rest_rate).axial_forces(&mut held);
+        o.through = false;
         o.allowance.fill(0.0);
         o.update_moduli(asm);
         o.at(asm, v, beta, rest_rate).axial_forces(&mut own);
@@ -359,11 +366,10 @@ impl Objective {
     fn update_moduli(&mut self, asm: &Assembly) {
         let laws = &asm.elements.laws;
         damping_moduli(laws, &asm.rest, &asm.states, &self.taut, &mut self.moduli);
-        let newmark = matches!(self.snap, Some(SnapRule::AtEnd { .. }));
         for e in (0..self.taut.len()).filter(|&e| laws[e].tension_only()) {
             let snap = self.snap.filter(|_| !self.taut[e]);
             let allowance = self.allowance[e];
-            if snap.is_none() && !(newmark && self.taut[e]) {
+            if snap.is_none() && !(self.through && self.taut[e]) {
                 continue;
             }
             let (law, l0, s) = (&laws[e], asm.rest[e], &asm.states[e]);
