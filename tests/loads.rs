@@ -853,19 +853,6 @@ impl Recorder for SlackLog {
     }
 }
 
-/// The config of a 6 × 6 grid with steel cables (tension-only, stretched 2e-5 by their
-/// prestress) pushed down 5 cm and released for `duration` [s] in steps of `dt` [s], with
-/// objective Rayleigh damping `rayleigh` (the keys of `eigen.rayleigh`).
-fn slack_grid(rayleigh: &str, dt: f64, duration: f64) -> String {
-    format!(
-        "name: slack\nmodel:\n  grid: {{ nx: 6, ny: 6 }}\nformfinding: {{}}\n\
-         substitution: {{ strut: aluminium, cable: steel_cable, prestress_scale: 100.0 }}\n\
-         eigen:\n  solver: partial\n  modes: 20\n  rayleigh: {{ {rayleigh} }}\n\
-         folding:\n  steps: 5\n  prescribe:\n    - {{ group: top, axis: z, displacement: -0.05 }}\n\
-         deployment:\n  dt: {dt}\n  duration: {duration}\n  damped: true\n"
-    )
-}
-
 /// A 6 × 6 grid with steel cables (tension-only, stretched 2e-5 by their prestress) pushed
 /// down 5 cm and released with objective damping: about 2 000 slack/taut switches in
 /// 0.2 s. The deployment's end positions must converge as Δt halves (1 ms … 1/64 ms), with
@@ -886,7 +873,7 @@ fn a_grid_with_slackening_cables_converges_as_dt_halves() {
     let ends: Vec<Vec<Vector3<f64>>> = (0..7)
         .map(|k| 1e-3 / f64::powi(2.0, k))
         .map(|dt| {
-            let text = slack_grid("modes: [1, 20], ratios: [0.02, 0.02]", dt, 0.2);
+            let text = common::slack_grid("modes: [1, 20], ratios: [0.02, 0.02]", dt, 0.2, "");
             let cfg = parse_case(&text, "slack.yaml").unwrap_or_else(|e| panic!("{e}"));
             let mut log = SlackLog::default();
             let summary = run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("{e}"));
@@ -940,7 +927,7 @@ fn a_grid_with_slackening_cables_converges_as_dt_halves() {
 #[test]
 fn a_stiffly_damped_grid_dissipates_over_every_step() {
     for beta in [0.0747, 0.3] {
-        let text = slack_grid(&format!("alpha: 0.0037, beta: {beta}"), 1e-3, 0.3);
+        let text = common::slack_grid(&format!("alpha: 0.0037, beta: {beta}"), 1e-3, 0.3, "");
         let cfg = parse_case(&text, "stiff.yaml").unwrap_or_else(|e| panic!("{e}"));
         let mut log = Log::default();
         let summary = run_case(&cfg, &mut log).unwrap_or_else(|e| panic!("β = {beta}: {e}"));

@@ -1,5 +1,7 @@
 //! The sparse path against the dense one, and the matrix-free K·v against the assembled K.
 
+mod common;
+
 use tsim::config::{parse_case, CaseConfig};
 use tsim::model::generate::TowerSpec;
 use tsim::pipeline::{run_case, CaseSummary};
@@ -95,13 +97,8 @@ fn relative_gap(a: &[f64], b: &[f64]) -> f64 {
 #[test]
 fn corrected_factorizations_deploy_as_fresh_ones() {
     for scheme in ["newmark", "energy_momentum"] {
-        let text = format!(
-            "name: slack\nmodel:\n  grid: {{ nx: 6, ny: 6 }}\nformfinding: {{}}\n\
-             substitution: {{ strut: aluminium, cable: steel_cable, prestress_scale: 100.0 }}\n\
-             eigen:\n  solver: partial\n  modes: 20\n  rayleigh: {{ modes: [1, 20], ratios: [0.02, 0.02] }}\n\
-             folding:\n  steps: 5\n  prescribe:\n    - {{ group: top, axis: z, displacement: -0.05 }}\n\
-             deployment:\n  dt: 0.001\n  duration: 0.2\n  damped: true\n  scheme: {scheme}\n"
-        );
+        let rayleigh = "modes: [1, 20], ratios: [0.02, 0.02]";
+        let text = common::slack_grid(rayleigh, 1e-3, 0.2, &format!("  scheme: {scheme}\n"));
         let cfg = parse_case(&text, "slack.yaml").unwrap_or_else(|e| panic!("{e}"));
         let ([(dense, dense_last), (sparse, sparse_last)], gap) = dense_and_sparse(&cfg);
         let (d, s) = (dense.transient("deployment").unwrap(), sparse.transient("deployment").unwrap());

@@ -206,3 +206,17 @@ pub fn tangent_check(
     }
     (k.0, worst)
 }
+
+/// The config of a 6 × 6 grid with steel cables (tension-only, stretched 2e-5 by their
+/// prestress) pushed down 5 cm and released for `duration` [s] in steps of `dt` [s], with
+/// objective Rayleigh damping `rayleigh` (the keys of `eigen.rayleigh`) and `deployment`
+/// (more lines of its section, each indented two spaces and ending in a newline).
+pub fn slack_grid(rayleigh: &str, dt: f64, duration: f64, deployment: &str) -> String {
+    format!(
+        "name: slack\nmodel:\n  grid: {{ nx: 6, ny: 6 }}\nformfinding: {{}}\n\
+         substitution: {{ strut: aluminium, cable: steel_cable, prestress_scale: 100.0 }}\n\
+         eigen:\n  solver: partial\n  modes: 20\n  rayleigh: {{ {rayleigh} }}\n\
+         folding:\n  steps: 5\n  prescribe:\n    - {{ group: top, axis: z, displacement: -0.05 }}\n\
+         deployment:\n  dt: {dt}\n  duration: {duration}\n  damped: true\n{deployment}"
+    )
+}

@@ -349,13 +349,13 @@ impl Objective {
         self.update_moduli(asm);
         self.at(asm, v, beta, rest_rate).axial_forces(&mut axial);
         for (e, (a, d)) in self.allowance.iter_mut().zip(&axial).enumerate() {
-            let m = &self.moduli[e];
+            let m = &mut self.moduli[e];
             if m.tension_only && m.snap.is_none() && m.stiffness != 0.0 {
                 *a = carry * (asm.states[e].force + d).max(0.0);
+                m.allowance = *a;
             }
         }
         self.axial[0] = axial;
-        self.update_moduli(asm);
     }
 
     /// The members' damping moduli at the current states; a tension-only member slack at

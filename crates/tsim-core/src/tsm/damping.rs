@@ -144,8 +144,8 @@ fn scatter(dofs: &DofMap, [a, b]: [usize; 2], f: &Vector3<f64>, out: &mut [f64])
 /// of constant rest length has r = 0 and gets no force; the power dissipated, β k r², is
 /// never negative. A tension-only member's force is held at −N (less its allowance)
 /// where its total would push ([`DampingModulus`]); one slack at the step's start is
-/// damped at its [`SnapRate`] R, positive only where it lengthens through l0 in the step (a rigid motion leaves it
-/// slack and undamped), so that it too dissipates over the step. For small motions about
+/// damped at its [`SnapRate`] R, positive only where it lengthens through l0 in the step
+/// (a rigid motion leaves it slack and undamped), so that it too dissipates over the step. For small motions about
 /// a state it is β K_0 v: K_T's geometric part is left out, which is what makes it
 /// objective.
 pub struct ObjectiveDamping<'a> {
