@@ -163,7 +163,7 @@ fn gap(a: &Log, b: &Log, t: f64) -> [f64; 4] {
     ]
 }
 
-/// The twisted prism by Newmark at Δt = 1, ½, ¼, ⅛, 1/16 ms: no cable pushes at any step,
+/// The twisted prism by Newmark at Δt = 1, ½, ¼, ⅛, 1/16, 1/32 ms: no cable pushes at any step,
 /// and the positions, member forces, reactions and energies converge as Δt halves.
 ///
 /// Going slack is continuous now (the total force reaches 0 before the cable reaches l0),
@@ -173,12 +173,14 @@ fn gap(a: &Log, b: &Log, t: f64) -> [f64; 4] {
 /// from the acceleration just after the jump; a cable taut at a step's start is held on
 /// its mean force over the step (`tsm::DampingModulus`'s allowance). Measured, largest
 /// differences of successive runs (ratios):
-/// - t = 0.05 s (end of the pulse): positions 2.61e-6, 6.73e-7, 1.64e-7, 4.09e-8 m (3.87,
-///   4.10, 4.01), forces 1.92, 0.519, 0.120, 0.029 N (3.70, 4.34, 4.10).
-/// - t = 0.2 s, after many snaps: positions 1.58e-5, 3.95e-6, 1.00e-6, 2.50e-7 m (4.00,
-///   3.95, 4.00), forces 3.54, 1.01, 0.233, 0.076 N (3.51, 4.33, 3.05), reactions 3.79,
-///   0.925, 0.216, 0.061 N (4.10, 4.27, 3.57), energies (kinetic, strain, dissipated)
-///   0.0670, 0.0168, 0.0042, 0.0010 J (3.98, 3.96, 4.04).
+/// - t = 0.05 s (end of the pulse): positions 2.61e-6, 6.73e-7, 1.64e-7, 4.09e-8, 1.07e-8 m
+///   (3.87, 4.10, 4.01, 3.82), forces 1.92, 0.519, 0.119, 0.029, 0.0084 N (3.70, 4.34,
+///   4.10, 3.47), reactions (3.18, 5.13, 3.77, 3.30), energies (4.00, 3.99, 4.00, 4.00).
+/// - t = 0.2 s, after many snaps: positions 1.58e-5, 3.95e-6, 1.00e-6, 2.50e-7, 6.35e-8 m
+///   (4.00, 3.95, 4.00, 3.94), forces 3.54, 1.01, 0.233, 0.076, 0.012 N (3.50, 4.33, 3.05,
+///   6.40), reactions 3.79, 0.925, 0.216, 0.061, 0.015 N (4.10, 4.28, 3.54, 4.00),
+///   energies (kinetic, strain, dissipated) 0.0670, 0.0168, 0.0042, 0.0010, 0.00026 J
+///   (3.98, 3.96, 4.06, 3.94).
 ///
 /// Before the mean hold, with the held force at −N at the step's end: positions the same
 /// to 3 digits, forces at 0.2 s 5.05, 1.35, 0.356, 0.099 N (3.75, 3.78, 3.59): the mean
@@ -192,11 +194,12 @@ fn gap(a: &Log, b: &Log, t: f64) -> [f64; 4] {
 /// Asserted: every ratio ≥ 3 at both times (second order, 4 per halving, less the
 /// pre-asymptotic scatter measured above; first order would give 2).
 ///
-/// Known limit: one halving further (1/32 ms) the differences stop falling (positions
-/// 4.09e-8 → 3.60e-8 m at 0.05 s) because the default Newton tolerance accepts most of
-/// those steps at the predictor (2 321 iterations for 6 400 steps): its floor for the
-/// inertia term, 64 ε m/(βΔt²)|x| in absolute coordinates, grows as 1/Δt². With
-/// `newton.force_tolerance: 0` the ratios go on (3.8 for positions, 4.0 for energies).
+/// When a step's unknowns were its end coordinates, the 1/32 ms differences stopped
+/// falling (positions 4.09e-8 → 3.60e-8 m at 0.05 s): the Newton tolerance's floor for the
+/// inertia term, 64 ε m/(βΔt²)|x|, grew as 1/Δt² and accepted most of those steps at the
+/// predictor (2 321 iterations for 6 400 steps). The unknown is now the increment
+/// (`dynamics::newmark`), and the 1/32 ms run is as close to its own run at
+/// `newton.force_tolerance: 0` as the finer steps are (1.07e-8 m at 0.05 s either way).
 #[test]
 fn a_twisted_prism_s_cables_never_push_and_converge_as_dt_halves() {
     assert_second_order_through_snaps("newmark", &[0.05, 0.2]);
@@ -205,23 +208,26 @@ fn a_twisted_prism_s_cables_never_push_and_converge_as_dt_halves() {
 /// The twisted prism by the energy–momentum scheme, whose snap rate closes the gap the
 /// cable had at the step's start (`tsm::SnapRate`), and whose recorded end forces are
 /// extrapolated from its midpoints' (bounded so that no cable pushes). Measured, largest
-/// differences of successive runs (ratios) at t = 0.2 s, after many snaps: positions
-/// 1.58e-5, 3.99e-6, 9.85e-7, 2.47e-7 m (3.96, 4.05, 3.99), forces 4.06, 1.28, 0.257,
-/// 0.081 N (3.18, 4.96, 3.19), reactions 3.11, 0.843, 0.191, 0.056 N (3.69, 4.41, 3.42),
-/// energies 0.0667, 0.0164, 0.0042, 0.0010 J (4.06, 3.95, 4.09); with each snapping cable
-/// undamped for its step, positions 2.71, 3.79, 4.41 and forces 0.73, 3.51, 3.81.
+/// differences of successive runs at Δt = 1 … 1/32 ms (ratios) at t = 0.2 s, after many
+/// snaps: positions 1.58e-5, 3.99e-6, 9.85e-7, 2.49e-7, 6.27e-8 m (3.96, 4.05, 3.96, 3.96),
+/// forces 4.06, 1.28, 0.257, 0.079, 0.013 N (3.18, 4.96, 3.26, 6.06), reactions 3.11,
+/// 0.843, 0.191, 0.054, 0.014 N (3.69, 4.41, 3.56, 3.91), energies 0.0667, 0.0164, 0.0042,
+/// 0.0010, 0.00026 J (4.06, 3.95, 4.02, 3.97); at t = 0.05 s the smallest ratios are the
+/// last ones, forces 3.42 and reactions 3.25 (with a step's end coordinates as its
+/// unknowns, 2.90 and 2.80). With each snapping cable undamped for its step (Δt = 1 …
+/// 1/16 ms), positions 2.71, 3.79, 4.41 and forces 0.73, 3.51, 3.81.
 /// Asserted as for Newmark: every ratio ≥ 3 at both times.
 #[test]
 fn by_energy_momentum_the_twisted_prism_converges_as_dt_halves() {
     assert_second_order_through_snaps("energy_momentum", &[0.05, 0.2]);
 }
 
-/// The twisted prism by `scheme` at Δt = 1, ½, ¼, ⅛, 1/16 ms: no cable pushes at any step,
+/// The twisted prism by `scheme` at Δt = 1, ½, ¼, ⅛, 1/16, 1/32 ms: no cable pushes at any step,
 /// some are slack and some held; every ratio of successive differences of positions,
 /// member forces, reactions and energies at `times` is ≥ 3 (second order, 4 per halving, less the pre-asymptotic
 /// scatter measured; first order would give 2).
 fn assert_second_order_through_snaps(scheme: &str, times: &[f64]) {
-    let runs: Vec<Log> = [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5]
+    let runs: Vec<Log> = [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5, 3.125e-5]
         .into_iter()
         .map(|dt| {
             let log = run(&twisted_prism(dt, scheme), "twist");

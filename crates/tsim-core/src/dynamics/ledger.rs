@@ -64,13 +64,13 @@ impl Ledger {
     }
 }
 
-/// The trapezoidal work Σ ½ (f0 + f1)·(u1 − u0) of forces f0 at u0 and f1 at u1 over a
-/// step: with average acceleration, for the forces each equation actually used, this is
-/// the scheme's discrete energy identity.
-pub(super) fn trapezoidal_work(f0: &[f64], f1: &[f64], u0: &[f64], u1: &[f64]) -> f64 {
+/// The trapezoidal work Σ ½ (f0 + f1)·Δu of forces f0 and f1 at a step's ends over its
+/// increment Δu: with average acceleration, for the forces each equation actually used,
+/// this is the scheme's discrete energy identity.
+pub(super) fn trapezoidal_work(f0: &[f64], f1: &[f64], du: &[f64]) -> f64 {
     let mut w = 0.0;
-    for i in 0..u0.len() {
-        w += 0.5 * (f0[i] + f1[i]) * (u1[i] - u0[i]);
+    for i in 0..du.len() {
+        w += 0.5 * (f0[i] + f1[i]) * du[i];
     }
     w
 }

@@ -273,11 +273,18 @@ fn total_forces(asm: &Assembly, viscous: &Viscous, rest_rate: &[f64], (v, c_v): 
     }
 }
 
-/// The step being solved, on the free DOFs: `v` the velocities at its end, and with the
-/// midpoint rule `mid` and `v_mid` the coordinates and velocities its equation is taken at.
+/// The step being solved, on the free DOFs. Its unknown is the increment Δu = u_{n+1} − u_n
+/// (`trial`), not the end coordinates: the inertia term m (Δu − `base`)/(βΔt²) and the
+/// velocity then difference increments, whose round-off is ε|Δu|, not ε|u| — in absolute
+/// coordinates the residual's floor m ε |u|/(βΔt²) grows as 1/Δt², and a step accepted
+/// within it leaves a velocity error of ε|u|/Δt that adds up over 1/Δt steps (the
+/// twisted prism's Δt study stopped converging at 1/32 ms). `at`: the end coordinates
+/// u_n + Δu of the iterate; `v` the velocities at its end, and with the midpoint rule `mid`
+/// and `v_mid` the coordinates and velocities its equation is taken at.
 struct Next {
     base: Vec<f64>,
     trial: Vec<f64>,
+    at: Vec<f64>,
     f: Vec<f64>,
     v: Vec<f64>,
     fd: Vec<f64>,
@@ -379,6 +386,7 @@ impl<'a> Newmark<'a> {
             next: Next {
                 base: vec![0.0; n],
                 trial: vec![0.0; n],
+                at: vec![0.0; n],
                 f: vec![0.0; n],
                 v: vec![0.0; n],
                 fd: vec![0.0; n],
@@ -529,19 +537,19 @@ impl<'a> Newmark<'a> {
         bisect(0.0, 1.0, max_cuts, &mut step, &merge).map(|(report, _)| report)
     }
 
-    /// Newmark's velocity at the end of a step of size dt ending at coordinates `u`, into
-    /// `next.v`: v_{n+1} = v_n + Δt((1 − γ) a_n + γ a_{n+1}), a_{n+1} = (u − base)/(βΔt²).
-    fn next_velocity(&mut self, u: &[f64], dt: f64) {
+    /// Newmark's velocity at the end of a step of size dt by increment `du`, into `next.v`:
+    /// v_{n+1} = v_n + Δt((1 − γ) a_n + γ a_{n+1}), a_{n+1} = (Δu − base)/(βΔt²).
+    fn next_velocity(&mut self, du: &[f64], dt: f64) {
         let (beta, gamma) = self.params.kinematics();
         let c_a = 1.0 / (beta * dt * dt);
         let (v, a, base) = (&self.v, &self.a, &self.next.base);
         for (i, v_next) in self.next.v.iter_mut().enumerate() {
-            *v_next = v[i] + dt * ((1.0 - gamma) * a[i] + gamma * (c_a * (u[i] - base[i])));
+            *v_next = v[i] + dt * ((1.0 - gamma) * a[i] + gamma * (c_a * (du[i] - base[i])));
         }
     }
 
     /// Sets up the step to t + dt: the load at its end and the predictor.
-    /// u_{n+1} = base + β dt² a_{n+1}, base = u_n + dt v_n + dt² (½ − β) a_n. Newton starts,
+    /// Δu = base + β dt² a_{n+1}, base = dt v_n + dt² (½ − β) a_n. Newton starts,
     /// in `next.trial`, from a_{n+1} = a_n + a_{n−1} − a_{n−2} where the last two steps were
     /// of this dt, else from a_{n+1} = a_n (constant acceleration, the usual predictor).
     ///
@@ -558,7 +566,7 @@ impl<'a> Newmark<'a> {
         let history = self.history.steps >= 2 && self.history.dt == dt;
         let next = &mut self.next;
         for i in 0..self.mass.len() {
-            next.base[i] = self.u[i] + dt * self.v[i] + dt * dt * (0.5 - beta) * self.a[i];
+            next.base[i] = dt * self.v[i] + dt * dt * (0.5 - beta) * self.a[i];
             let guess = if history {
                 self.a[i] + self.history.previous[i] - self.history.before[i]
             } else {
@@ -569,10 +577,9 @@ impl<'a> Newmark<'a> {
         if self.asm.contact.is_some() {
             // The predictor is an iterate too: no further than keeps bodies apart (`asm` is
             // at the step's start).
-            let (u, trial) = (&self.u, &mut self.next.trial);
-            trial.iter_mut().zip(u).for_each(|(t, u)| *t -= u);
+            let trial = &mut self.next.trial;
             let tau = self.asm.admissible(trial, 1.0);
-            trial.iter_mut().zip(u).for_each(|(t, u)| *t = u + tau * *t);
+            trial.iter_mut().for_each(|t| *t *= tau);
         }
     }
 
@@ -721,7 +728,7 @@ impl<'a> Newmark<'a> {
                     ends.solve(&self.asm, &self.viscous, rest_rate, &self.next.v_mid);
                 }
                 if self.params.scheme.at_midpoint() {
-                    self.end_midpoint_step(&trial, dt);
+                    self.end_midpoint_step(dt);
                 }
                 Ok((report, trial))
             }
@@ -735,30 +742,30 @@ impl<'a> Newmark<'a> {
         }
     }
 
-    /// A midpoint step of size dt converged to end coordinates `u`, its equation at the
-    /// midpoint: `asm` (rest lengths, member states) and the damping moduli are set to its
-    /// end, what the step commits and records; `next.fd` stays the midpoint's, the force
-    /// its equation balanced.
-    fn end_midpoint_step(&mut self, u: &[f64], dt: f64) {
+    /// A midpoint step of size dt converged to end coordinates `next.at`, its equation at
+    /// the midpoint: `asm` (rest lengths, member states) and the damping moduli are set to
+    /// its end, what the step commits and records; `next.fd` stays the midpoint's, the
+    /// force its equation balanced.
+    fn end_midpoint_step(&mut self, dt: f64) {
         if let Some(a) = &mut self.actuation {
             a.step_to(self.time + dt, &mut self.asm);
         }
-        self.asm.set_free(u);
+        self.asm.set_free(&self.next.at);
         self.viscous.at_iterate(&self.asm);
     }
 
-    /// Commits the converged step of size dt to coordinates `trial`: positions,
+    /// Commits the converged step of size dt by increment `trial` (to `next.at`): positions,
     /// accelerations, velocities, damping force, energy ledger (with the midpoint rule,
     /// the acceleration and damping force at the step's end). The last residual was
-    /// evaluated at `trial` (`newton` ends on it): `asm`, the damping state, `next.v` and
-    /// `next.fd` hold the converged step's values.
-    fn commit(&mut self, mut trial: Vec<f64>, dt: f64) {
+    /// evaluated at `trial` (`newton` ends on it): `asm`, the damping state, `next.at`,
+    /// `next.v` and `next.fd` hold the converged step's values.
+    fn commit(&mut self, trial: Vec<f64>, dt: f64) {
         let c_a = 1.0 / (self.params.kinematics().0 * dt * dt);
         self.history.push(&mut self.a, dt);
-        for (a, (u, base)) in self.a.iter_mut().zip(trial.iter().zip(&self.next.base)) {
-            *a = c_a * (u - base);
+        for (a, (du, base)) in self.a.iter_mut().zip(trial.iter().zip(&self.next.base)) {
+            *a = c_a * (du - base);
         }
-        let external = trapezoidal_work(&self.f, &self.next.f, &self.u, &trial);
+        let external = trapezoidal_work(&self.f, &self.next.f, &trial);
         // The damping force the step's equation balanced: at its end and start (Newmark's
         // trapezoidal work), or the midpoint's over the whole step.
         let fd_start = if self.params.scheme.at_midpoint() {
@@ -766,8 +773,8 @@ impl<'a> Newmark<'a> {
         } else {
             &self.fd
         };
-        let damping = trapezoidal_work(fd_start, &self.next.fd, &self.u, &trial);
-        std::mem::swap(&mut self.u, &mut trial);
+        let damping = trapezoidal_work(fd_start, &self.next.fd, &trial);
+        std::mem::swap(&mut self.u, &mut self.next.at);
         std::mem::swap(&mut self.v, &mut self.next.v);
         std::mem::swap(&mut self.f, &mut self.next.f);
         std::mem::swap(&mut self.fd, &mut self.next.fd);
@@ -820,21 +827,22 @@ impl StepProblem<'_, '_> {
 }
 
 impl Residual for StepProblem<'_, '_> {
-    fn residual(&mut self, u: &[f64], r: &mut [f64]) -> Scale {
-        let (c_a, c_v) = self.coefficients();
+    fn residual(&mut self, du: &[f64], r: &mut [f64]) -> Scale {
+        let c_a = self.coefficients().0;
         let nm = &mut *self.nm;
-        nm.next_velocity(u, self.dt);
+        nm.next_velocity(du, self.dt);
         let midpoint = nm.params.scheme.at_midpoint();
         let next = &mut nm.next;
+        next.at.iter_mut().zip(&nm.u).zip(du).for_each(|((x, u), d)| *x = u + d);
         if midpoint {
-            next.mid.iter_mut().zip(&nm.u).zip(u).for_each(|((m, a), b)| *m = 0.5 * (a + b));
+            next.mid.iter_mut().zip(&nm.u).zip(du).for_each(|((m, u), d)| *m = u + 0.5 * d);
             next.v_mid
                 .iter_mut()
                 .zip(&nm.v)
                 .zip(&next.v)
                 .for_each(|((m, a), b)| *m = 0.5 * (a + b));
         }
-        nm.asm.set_free(if midpoint { &next.mid } else { u });
+        nm.asm.set_free(if midpoint { &next.mid } else { &next.at });
         if let Some(em) = &mut nm.energy_momentum {
             em.at_midpoint(&nm.asm);
         }
@@ -843,9 +851,9 @@ impl Residual for StepProblem<'_, '_> {
         let rest_rate = nm.actuation.as_ref().map_or(&[][..], |a| &a.rate);
         nm.viscous.force(&nm.asm, &nm.mass, v, rest_rate, &mut next.fd);
         let (mut applied, mut inertia_floor) = (0.0_f64, 0.0_f64);
-        for i in 0..u.len() {
+        for i in 0..du.len() {
             let m = nm.mass[i];
-            let inertia = m * c_a * (u[i] - next.base[i]);
+            let inertia = m * c_a * (du[i] - next.base[i]);
             let f = if midpoint { 0.5 * (nm.f[i] + next.f[i]) } else { next.f[i] };
             let p = nm
                 .energy_momentum
@@ -853,22 +861,14 @@ impl Residual for StepProblem<'_, '_> {
                 .map_or_else(|| nm.asm.p_free(i), |em| em.p_free(&nm.asm, i));
             r[i] = f - inertia - next.fd[i] - p;
             applied = applied.max(f.abs()).max(inertia.abs());
-            inertia_floor = inertia_floor.max(m * c_a * u[i].abs());
+            inertia_floor = inertia_floor.max(m * c_a * du[i].abs().max(next.base[i].abs()));
         }
-        // The inertia term differences absolute coordinates: its round-off is
-        // m/(βΔt²)·ε·|u|, which for small steps or far-from-origin nodes exceeds the
-        // members' floor. 64 ε as for the members. The damping force does so through the
-        // velocity γ/(βΔt)·(u − …): β_R γ/(βΔt) times the members' floor, α_R γ/(βΔt)
-        // times m ε |u|. Those count at a frozen iterate only: counted everywhere, they let
-        // the paper's deployment stop 3 times further from full Newton's path; left out, a
-        // large grid stalls just above the floor (tests/pipeline.rs
-        // `newmark_newton_floor_with_stiffness_damping`).
+        // The inertia term differences increments: its round-off is m/(βΔt²)·ε·|Δu| (or of
+        // the base), 64 ε as for the members. The velocity does so too, so the damping force
+        // adds none beyond the members' own.
         let scale = nm.asm.scale(applied);
-        let Rayleigh { alpha, beta } = nm.viscous.rayleigh;
-        let inertia = 64.0 * f64::EPSILON * inertia_floor;
         Scale {
-            roundoff: scale.roundoff + inertia,
-            frozen: beta.abs() * c_v * scale.roundoff + alpha.abs() * c_v / c_a * inertia,
+            roundoff: scale.roundoff + 64.0 * f64::EPSILON * inertia_floor,
             ..scale
         }
     }
@@ -911,15 +911,15 @@ impl Residual for StepProblem<'_, '_> {
         self.nm.viscous.symmetric() && self.nm.energy_momentum.is_none() && self.nm.asm.symmetric_tangent()
     }
 
-    /// At the midpoint the positions move at half u's rate, and the end ones (which the
-    /// step commits, and whose gaps the energy–momentum form takes) at u's: both stay clear.
-    fn admissible(&mut self, u: &[f64], d: &[f64]) -> f64 {
+    /// At the midpoint the positions move at half Δu's rate, and the end ones (which the
+    /// step commits, and whose gaps the energy–momentum form takes) at Δu's: both stay clear.
+    fn admissible(&mut self, _du: &[f64], d: &[f64]) -> f64 {
         let rate = self.nm.params.equation_at();
         let at = self.nm.asm.admissible(d, rate);
         if rate == 1.0 {
             return at;
         }
-        at.min(self.nm.asm.admissible_at(u, d))
+        at.min(self.nm.asm.admissible_at(&self.nm.next.at, d))
     }
 }
 

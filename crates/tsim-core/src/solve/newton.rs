@@ -228,11 +228,6 @@ pub struct Scale {
     pub force: f64,
     /// Round-off floor of the residual [N], added to the tolerance.
     pub roundoff: f64,
-    /// Round-off the floor adds at a frozen iterate, one whose last increment moved no
-    /// coordinate by more than a few ulps, so that no iteration can change it any more:
-    /// terms whose ulp sensitivity `roundoff` leaves out, counted only there (counted
-    /// everywhere they would stop solves earlier than they can converge).
-    pub frozen: f64,
 }
 
 /// A nonlinear problem on the free DOFs: r(u) = external − internal (− inertia − damping)
@@ -500,7 +495,7 @@ fn iterate(
         let converged = res <= tolerance
             && settled(settings, res, previous, iteration == cap)
             && (iteration == 0 || increment <= increment_tolerance || progress.stalled);
-        if converged || (iteration > 0 && res <= tolerance + scale.frozen && frozen(increment, u)) {
+        if converged || (iteration > 0 && res <= tolerance && frozen(increment, u)) {
             if on_held && iteration > 0 {
                 ws.held.record(true);
             }
@@ -649,16 +644,17 @@ fn same(a: f64, b: f64) -> bool {
 /// changes it by orders of magnitude.
 const CYCLE_MATCH: f64 = 1e-6;
 
-/// Whether an increment of max-norm `increment` at `u` moved no coordinate by more than
-/// [`FROZEN_ULPS`] ulps of the largest one.
+/// Whether an increment of max-norm `increment` at `u` moved no unknown by more than
+/// [`FROZEN_ULPS`] ulps of the largest one (no iteration can change the iterate any more).
 fn frozen(increment: f64, u: &[f64]) -> bool {
     let largest = u.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
     increment <= FROZEN_ULPS * f64::EPSILON * largest
 }
 
-/// An ulp of the largest coordinate is ε to 2ε times it; an increment of a few is the
-/// round-off of the solve itself (the 105 × 105 grid's stalled steps: 1.42e-14 m at
-/// coordinates of 64 m, one ulp), where a step that can still move is orders above.
+/// An ulp of the largest unknown is ε to 2ε times it; an increment of a few is the
+/// round-off of the solve itself (the 105 × 105 grid's stalled steps, when a time step's
+/// unknowns were its end coordinates: 1.42e-14 m at coordinates of 64 m, one ulp), where
+/// a step that can still move is orders above.
 const FROZEN_ULPS: f64 = 4.0;
 
 /// Most tenfold increases of the shift τ before giving up: from τ0 = (force scale)/(model
@@ -794,7 +790,6 @@ mod tests {
             Scale {
                 force: self.a,
                 roundoff: self.roundoff,
-                frozen: 0.0,
             }
         }
 
@@ -840,11 +835,7 @@ mod tests {
         fn residual(&mut self, u: &[f64], r: &mut [f64]) -> Scale {
             self.u = u[0];
             r[0] = 1.0 - if u[0] < 0.0 { u[0] } else { 3.0 * u[0] + 2.0 };
-            Scale {
-                force: 1.0,
-                roundoff: 0.0,
-                frozen: 0.0,
-            }
+            Scale { force: 1.0, roundoff: 0.0 }
         }
 
         fn tangent(&mut self, k: &mut dyn TangentSink) {
@@ -972,11 +963,7 @@ mod tests {
         fn residual(&mut self, _u: &[f64], r: &mut [f64]) -> Scale {
             r.copy_from_slice(if self.calls == 0 { &self.first } else { &self.later });
             self.calls += 1;
-            Scale {
-                force: 1.0,
-                roundoff: 0.0,
-                frozen: 0.0,
-            }
+            Scale { force: 1.0, roundoff: 0.0 }
         }
 
         fn tangent(&mut self, k: &mut dyn TangentSink) {

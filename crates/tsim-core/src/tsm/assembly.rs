@@ -248,7 +248,6 @@ impl<'a> Assembly<'a> {
         Scale {
             force: applied.max(force),
             roundoff: 64.0 * f64::EPSILON * stiff,
-            frozen: 0.0,
         }
     }
 
