@@ -170,6 +170,23 @@ fn matrix_free_product_and_sparse_solve_match_dense() {
         // The shifted matrix is well conditioned (cond ≲ 1e3 here): residual ≲ 1e-12.
         assert!((back - v[i]).abs() <= 1e-10, "row {i}: K x = {back} vs {}", v[i]);
     }
+    // Unsymmetric (as objective damping's step matrix): a skew part within each node's
+    // block, solved by the sparse LU.
+    for i in 0..n {
+        let j = i ^ 1;
+        if j < n && dofs.owner(i).0 == dofs.owner(j).0 {
+            let skew = if i < j { 0.3 * scale } else { -0.3 * scale };
+            tsim::solve::TangentSink::add(&mut sparse, i, j, skew);
+            kd[(i, j)] += skew;
+        }
+    }
+    let mut x = v.clone();
+    sparse.factor(false).unwrap();
+    sparse.solve(&mut x).unwrap();
+    for i in 0..n {
+        let back: f64 = (0..n).map(|j| kd[(i, j)] * x[j]).sum();
+        assert!((back - v[i]).abs() <= 1e-10, "LU, row {i}: K x = {back} vs {}", v[i]);
+    }
 }
 
 /// A tensioned tower (every member 1 % longer than its rest length: K_T is positive
