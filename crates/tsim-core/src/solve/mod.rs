@@ -14,7 +14,7 @@ pub mod small_solve;
 
 pub use bisect::bisect;
 pub use dense_eigen::symmetric_eigen;
-pub use eigen::{krylov_dimension, partial_eigen, Diagonal, EigenError, EigenPairs, Shift};
+pub use eigen::{krylov_dimension, lowest_eigen, partial_eigen, Diagonal, EigenError, EigenPairs, Shift};
 pub use linear::{DenseSolver, LinearError, ScaledSink, SparseSolver, Sparsity, TangentSink, TangentSolver};
 pub use newton::{
     newton, LinearSolverChoice, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, SolveError, TangentUpdate, DENSE_LIMIT,

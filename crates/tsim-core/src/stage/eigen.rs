@@ -15,7 +15,7 @@ use crate::dynamics::Rayleigh;
 use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::record::{EigenRecord, Recorder, Stage};
-use crate::solve::{krylov_dimension, partial_eigen, symmetric_eigen, Diagonal, Shift, TangentSink};
+use crate::solve::{krylov_dimension, lowest_eigen, partial_eigen, symmetric_eigen, Diagonal, Shift, TangentSink};
 use crate::structure::{State, Structure};
 use crate::tsm::{tangent_sparsity, Assembly, DofMap};
 use faer::Mat;
@@ -314,26 +314,41 @@ fn dense_modes(k: &Mat<f64>, mass: &[f64]) -> Result<Modes> {
     Ok(Modes { omega2, shapes })
 }
 
+/// The lowest eigenvalue of K_T at an equilibrium: its stability.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LowestStiffness {
+    /// The lowest eigenvalue of K_T on the free DOFs [N/m]: within ±`band` resolved to
+    /// about a tenth of the band by the partial solver (an upper bound; round-off decides
+    /// the rest), elsewhere to the solver's precision.
+    pub value: f64,
+    /// The direction its eigenvector moves most ("node `t3` direction z").
+    pub at: String,
+    /// The band ± this about zero in which round-off decides its sign [N/m]: 1e3 ε times
+    /// K_T's largest diagonal entry (an eigenvalue of a symmetric matrix is resolved to
+    /// ~ε‖K‖; a prestress-stabilised mechanism of the paper's tower sits ~1e5 times above it).
+    pub band: f64,
+}
+
 /// Stability of an equilibrium: the lowest eigenvalue of K_T on the free DOFs of `asm` and
 /// the DOF its eigenvector moves most. K_T positive definite ⇔ stable. Dense up to
-/// [`DENSE_EIGEN_LIMIT`] free DOF, partial (one eigenpair, M = I) above.
-pub fn lowest_stiffness(asm: &Assembly) -> Result<(f64, String)> {
+/// [`DENSE_EIGEN_LIMIT`] free DOF, partial (one eigenpair, M = I, [`lowest_eigen`]) above.
+pub fn lowest_stiffness(asm: &Assembly) -> Result<LowestStiffness> {
     let (dofs, model) = (asm.dofs, asm.model);
     let n = dofs.len();
+    let band = 1e3 * f64::EPSILON * largest_diagonal(asm);
     let largest = |v: faer::MatRef<f64>| (0..n).max_by(|&a, &b| v[(a, 0)].abs().total_cmp(&v[(b, 0)].abs())).unwrap_or(0);
-    let (lowest, i) = if ModeSolver::lowest(1).partial(n) {
-        let pairs = partial_eigen(
+    let (value, i) = if ModeSolver::lowest(1).partial(n) {
+        let pair = lowest_eigen(
             &vec![1.0; n],
             tangent_sparsity(model, dofs),
             &|k: &mut dyn TangentSink| asm.add_tangent(1.0, k),
-            1,
-            Shift::Lowest,
+            band,
         )
         .map_err(|e| Error::Stage {
             stage: "stability".into(),
             reason: format!("partial eigen solver: {e}"),
         })?;
-        (pairs.values[0], largest(pairs.vectors.as_ref()))
+        (pair.values[0], largest(pair.vectors.as_ref()))
     } else {
         let (values, vectors) = symmetric_eigen(tangent_matrix(asm).as_ref()).map_err(|e| Error::Stage {
             stage: "stability".into(),
@@ -341,7 +356,11 @@ pub fn lowest_stiffness(asm: &Assembly) -> Result<(f64, String)> {
         })?;
         (values[0], largest(vectors.as_ref()))
     };
-    Ok((lowest, dofs.label(model, i)))
+    Ok(LowestStiffness {
+        value,
+        at: dofs.label(model, i),
+        band,
+    })
 }
 
 /// The largest diagonal entry of K_T on the free DOFs of `asm` (the scale of its

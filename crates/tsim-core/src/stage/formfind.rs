@@ -51,10 +51,12 @@ pub struct Equilibrium {
     /// Largest support reaction [N]: zero for a true self-equilibrium.
     pub max_reaction: f64,
     /// Lowest eigenvalue of K_T on the free DOFs [N/m] and where it acts: > 0 is a stable
-    /// equilibrium (a minimum of the potential).
+    /// equilibrium (a minimum of the potential); see [`LowestStiffness`](super::eigen::LowestStiffness).
     pub lowest_stiffness: f64,
     /// The direction its eigenvector moves most ("node `t3` direction z").
     pub lowest_stiffness_at: String,
+    /// The band ± this about zero in which round-off decides that eigenvalue's sign [N/m].
+    pub stiffness_roundoff: f64,
 }
 
 impl Analysis for SelfEquilibrium {
@@ -81,15 +83,16 @@ impl Analysis for SelfEquilibrium {
             .filter(|&i| dofs.free(i / 3, i % 3).is_none())
             .map(|i| asm.p[i].abs())
             .fold(0.0, f64::max);
-        let (lowest_stiffness, lowest_stiffness_at) = lowest_stiffness(&asm)?;
+        let lowest = lowest_stiffness(&asm)?;
         let found = Equilibrium {
             forces: asm.states.iter().map(|s| s.force).collect(),
             lengths: asm.states.iter().map(|s| s.length).collect(),
             residuals: ws.history,
             energies: ws.energies,
             max_reaction,
-            lowest_stiffness,
-            lowest_stiffness_at,
+            lowest_stiffness: lowest.value,
+            lowest_stiffness_at: lowest.at,
+            stiffness_roundoff: lowest.band,
         };
         Ok((State::at_rest(asm.x), found))
     }
@@ -147,6 +150,10 @@ pub struct FormFindSummary {
     pub lowest_stiffness: f64,
     /// The direction its eigenvector moves most ("node `t3` direction z").
     pub lowest_stiffness_at: String,
+    /// The band ± this about zero in which round-off decides that eigenvalue's sign [N/m]
+    /// (within it, the value is resolved to about a tenth of the band).
+    #[serde(default)]
+    pub stiffness_roundoff: f64,
     /// Most compressive balanced member force [N] (tension positive).
     pub min_force: f64,
     /// Most tensile balanced member force [N].
@@ -164,6 +171,7 @@ impl FormFindSummary {
             height: height(&state.positions),
             lowest_stiffness: found.lowest_stiffness,
             lowest_stiffness_at: found.lowest_stiffness_at.clone(),
+            stiffness_roundoff: found.stiffness_roundoff,
             min_force: forces.iter().copied().fold(f64::INFINITY, f64::min),
             max_force: forces.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         }

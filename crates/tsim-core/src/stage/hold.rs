@@ -225,7 +225,7 @@ impl Analysis for Hold {
         summary.actuator_work = energy.actuation;
         summary.energy_balance_error = (energy.strain + energy.damping - energy.external - energy.actuation).abs();
         summary.equilibrium = recording.frames.check.into();
-        summary.lowest_stiffness = super::eigen::lowest_stiffness(&asm)?.0;
+        summary.lowest_stiffness = super::eigen::lowest_stiffness(&asm)?.value;
         let end = State {
             rest_lengths: Some(asm.rest.clone()),
             ..State::at_rest(asm.x)

@@ -508,7 +508,7 @@ impl Analysis for StaticLoad {
         recorder.end_stage(&self.stage).map_err(record_error(self.stage.name()))?;
         steps.summary.equilibrium = steps.frames.check.into();
         let asm = structure.assembly(&dofs, x, carried.as_deref().unwrap_or(rest));
-        steps.summary.lowest_stiffness = super::eigen::lowest_stiffness(&asm)?.0;
+        steps.summary.lowest_stiffness = super::eigen::lowest_stiffness(&asm)?.value;
         let end = State {
             rest_lengths: carried.or_else(|| state.rest_lengths.clone()),
             ..State::at_rest(asm.x)

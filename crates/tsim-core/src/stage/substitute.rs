@@ -2,7 +2,7 @@
 //! which its real law carries the form-found force at the form-found length, so the real
 //! structure is in equilibrium in the same shape.
 
-use super::eigen::{largest_diagonal, lowest_stiffness};
+use super::eigen::lowest_stiffness;
 use crate::error::{Error, Result};
 use crate::law::ForceLaw;
 use crate::model::clearance::{Search, Struts};
@@ -134,9 +134,7 @@ pub struct SubstitutionSummary {
     #[serde(default)]
     pub stability: Verdict,
     /// The band about zero in which round-off decides the lowest eigenvalue's sign, ± this
-    /// [N/m]: 1e3 ε times K_T's largest diagonal entry (an eigenvalue of a symmetric matrix
-    /// is resolved to ~ε‖K‖; a prestress-stabilised mechanism of the paper's tower sits
-    /// ~1e5 times above it).
+    /// [N/m] ([`LowestStiffness::band`](super::eigen::LowestStiffness::band)).
     #[serde(default)]
     pub stiffness_roundoff: f64,
     /// Sum of the lumped nodal masses [kg].
@@ -156,18 +154,17 @@ impl SubstitutionSummary {
             .zip(&structure.elements.rest)
             .filter(|((m, _), _)| m.kind == MemberKind::Cable)
             .map(|((_, s), l0)| s.length / l0);
-        let (lowest, at) = lowest_stiffness(&asm)?;
-        let roundoff = 1e3 * f64::EPSILON * largest_diagonal(&asm);
-        let stability = Verdict::of(lowest, roundoff);
+        let lowest = lowest_stiffness(&asm)?;
+        let stability = Verdict::of(lowest.value, lowest.band);
         Ok(SubstitutionSummary {
             residual: asm.max_free_residual(),
             max_force: asm.states.iter().map(|s| s.force.abs()).fold(0.0, f64::max),
             cable_stretch: stretch.fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], l| [lo.min(l), hi.max(l)]),
-            lowest_stiffness: lowest,
-            lowest_stiffness_at: at,
+            lowest_stiffness: lowest.value,
+            lowest_stiffness_at: lowest.at,
             stable: stability == Verdict::Stable,
             stability,
-            stiffness_roundoff: roundoff,
+            stiffness_roundoff: lowest.band,
             total_mass: structure.masses.iter().sum(),
         })
     }
