@@ -179,9 +179,8 @@ pub fn lowest_eigen(
     let first = lanczos(&op, 1, &start_vector(mass.len(), 1), r)?;
     let theta = first.theta[0];
     let error = if theta > r { r / (theta * (theta - r)) } else { f64::INFINITY };
-    let resolved = r > strict
-        && (sigma + 1.0 / theta).abs() <= band
-        && pencil.nothing_below(&op, theta, sigma, pencil.margin().max(2.0 * error));
+    let resolved =
+        r > strict && (sigma + 1.0 / theta).abs() <= band && pencil.nothing_below(&op, theta, sigma, pencil.margin().max(2.0 * error));
     let pairs = if resolved {
         first
     } else {
@@ -623,7 +622,12 @@ mod tests {
             "λ₁ = {lowest:e} ({:e} ± the band's resolution, band {band:e})",
             d[0]
         );
-        assert!(10 * loose.products <= full.products, "{} products, full precision {}", loose.products, full.products);
+        assert!(
+            10 * loose.products <= full.products,
+            "{} products, full precision {}",
+            loose.products,
+            full.products
+        );
         let d: Vec<f64> = (1..=400).map(|i| i as f64).collect();
         let strict = lowest_of(&d, band).values[0];
         assert!((strict - 1.0).abs() <= 1e-12, "λ₁ = {strict}, expected 1");
