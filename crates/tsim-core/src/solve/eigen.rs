@@ -155,15 +155,17 @@ const BAND_RESOLUTION: f64 = 0.1;
 
 /// The lowest eigenpair of K φ = λ M φ (as [`partial_eigen`] with one pair and
 /// [`Shift::Lowest`]), resolved only as finely as a stability check needs: where λ₁ lies
-/// within ±`band` (the round-off band of its sign) to about a tenth of the band, elsewhere
+/// within ±`band` (the round-off band of its sign) to a fraction of the band, elsewhere
 /// to the solver's precision.
 ///
 /// A Ritz pair locked at Lanczos residual r has an eigenvalue θ within r of its θ̃
 /// (symmetric A), so λ = σ + 1/θ lies within e = r/(θ̃(θ̃ − r)) of λ̃ = σ + 1/θ̃: the first
 /// run locks at r = band/10 · ‖A‖² (e ≈ band/10 for θ̃ ≈ ‖A‖), a few dozen products even in
 /// a crowded cluster. Its λ̃ is an upper bound on λ₁ (the largest Ritz value is below θ₁),
-/// and a Cholesky factorization at λ̃ − 2e (at least the shift's own margin) proves the
-/// lower one (Sylvester). Where λ̃ falls outside the band, or the proof fails, the pair is
+/// and a Cholesky factorization at λ̃ − 2e, or at the shift's own margin below λ̃ where
+/// that is larger, proves the lower one (Sylvester): λ₁ ∈ (λ̃ − max(2e, margin), λ̃]; for
+/// M = I and the band of [`lowest_stiffness`](crate::stage::eigen::lowest_stiffness) the
+/// margin is 0.45 band. Where λ̃ falls outside the band, or the proof fails, the pair is
 /// refined from the Ritz vector to the usual tolerance.
 pub fn lowest_eigen(
     mass: &[f64],

@@ -317,9 +317,10 @@ fn dense_modes(k: &Mat<f64>, mass: &[f64]) -> Result<Modes> {
 /// The lowest eigenvalue of K_T at an equilibrium: its stability.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LowestStiffness {
-    /// The lowest eigenvalue of K_T on the free DOFs [N/m]: within ±`band` resolved to
-    /// about a tenth of the band by the partial solver (an upper bound; round-off decides
-    /// the rest), elsewhere to the solver's precision.
+    /// The lowest eigenvalue of K_T on the free DOFs [N/m]. Within ±`band` the partial
+    /// solver gives an upper bound, a Ritz value accurate to about a tenth of the band,
+    /// and proves the eigenvalue less than half the band below it ([`lowest_eigen`]);
+    /// elsewhere, and by the dense solver, to the solver's precision.
     pub value: f64,
     /// The direction its eigenvector moves most ("node `t3` direction z").
     pub at: String,

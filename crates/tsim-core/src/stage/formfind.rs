@@ -151,7 +151,7 @@ pub struct FormFindSummary {
     /// The direction its eigenvector moves most ("node `t3` direction z").
     pub lowest_stiffness_at: String,
     /// The band ± this about zero in which round-off decides that eigenvalue's sign [N/m]
-    /// (within it, the value is resolved to about a tenth of the band).
+    /// (within it, the value is an upper bound, see `stage::eigen::LowestStiffness`).
     #[serde(default)]
     pub stiffness_roundoff: f64,
     /// Most compressive balanced member force [N] (tension positive).
