@@ -181,13 +181,13 @@ pub fn lowest_eigen(
     let first = lanczos(&op, 1, &start_vector(mass.len(), 1), r)?;
     let theta = first.theta[0];
     let error = if theta > r { r / (theta * (theta - r)) } else { f64::INFINITY };
-    let resolved =
-        r > strict && (sigma + 1.0 / theta).abs() <= band && pencil.nothing_below(&op, theta, sigma, pencil.margin().max(2.0 * error));
+    let margin = pencil.margin();
+    let resolved = r > strict && (sigma + 1.0 / theta).abs() <= band && pencil.nothing_below(&op, theta, sigma, margin.max(2.0 * error));
     let pairs = if resolved {
         first
     } else {
         let refined = lanczos(&op, 1, &first.y.col(0).to_owned(), strict)?;
-        pencil.proven_lowest(&op, refined, sigma, pencil.margin())?
+        pencil.proven_lowest(&op, refined, sigma, margin)?
     };
     op.failure(sigma)?;
     Ok(op.eigenpairs(pairs, sigma))
