@@ -69,7 +69,7 @@ pub enum Error {
 /// settings that make its steps smaller: a failure to converge or a divergence there is
 /// often a step too large for the nonlinearity.
 fn smaller_steps(stage: &str, source: &SolveError) -> String {
-    if matches!(source, SolveError::Singular { .. }) {
+    if matches!(source, SolveError::Singular { .. } | SolveError::OutOfMemory { .. }) {
         return String::new();
     }
     let section = match stage {

@@ -1,8 +1,15 @@
+/// A failed step's error: whether the same step taken in halves may succeed.
+pub trait StepFailure {
+    /// Whether halving the step is worth trying.
+    fn smaller_step_may_help(&self) -> bool;
+}
+
 /// Reaches `to` from `from` (fractions of an increment: load or displacement fraction in a
 /// static stage, fraction of Δt in a time step) by `step(from, to)`; where a step fails it
 /// is split at its midpoint and its halves are taken in order, each split again where it
 /// fails, down to `max_cuts` halvings (2^max_cuts sub-steps); the first sub-step that fails
-/// with no halving left returns its error. `step` must leave its state as it was when it
+/// with no halving left, or with an error no halving can help ([`StepFailure`]), returns
+/// its error. `step` must leave its state as it was when it
 /// fails. Returns the sub-steps' reports merged by `merge` in order (first with second,
 /// that with the third, ...), and whether any step was cut.
 ///
@@ -11,7 +18,7 @@
 ///
 /// The fractions stay dyadic for a whole Δt (0, ½, ¼, ...), so a time step's sub-steps
 /// are exact halves.
-pub fn bisect<R, E>(
+pub fn bisect<R, E: StepFailure>(
     from: f64,
     to: f64,
     max_cuts: u32,
@@ -22,7 +29,7 @@ pub fn bisect<R, E>(
     // not: tests/allocation.rs).
     let first = match step(from, to) {
         Ok(r) => return Ok((r, false)),
-        Err(e) if max_cuts == 0 => return Err(e),
+        Err(e) if max_cuts == 0 || !e.smaller_step_may_help() => return Err(e),
         Err(_) => 0.5 * (from + to),
     };
     // Sub-intervals still to take, the next one last, each with the halvings it has left.
@@ -36,7 +43,7 @@ pub fn bisect<R, E>(
                     None => r,
                 })
             }
-            Err(e) if cuts == 0 => return Err(e),
+            Err(e) if cuts == 0 || !e.smaller_step_may_help() => return Err(e),
             Err(_) => {
                 let mid = 0.5 * (a + b);
                 pending.push((mid, b, cuts - 1));
@@ -50,7 +57,52 @@ pub fn bisect<R, E>(
 
 #[cfg(test)]
 mod tests {
-    use super::bisect;
+    use super::{bisect, StepFailure};
+
+    // The tests' errors: a failure halving may help.
+    impl StepFailure for f64 {
+        fn smaller_step_may_help(&self) -> bool {
+            true
+        }
+    }
+    impl StepFailure for (f64, f64) {
+        fn smaller_step_may_help(&self) -> bool {
+            true
+        }
+    }
+    impl StepFailure for () {
+        fn smaller_step_may_help(&self) -> bool {
+            true
+        }
+    }
+
+    /// A step's failure: one halving may help (too long), or one it cannot (the
+    /// machine's memory).
+    #[derive(Debug, PartialEq)]
+    enum Failure {
+        TooLong,
+        Hopeless,
+    }
+    impl StepFailure for Failure {
+        fn smaller_step_may_help(&self) -> bool {
+            *self == Failure::TooLong
+        }
+    }
+
+    /// An error halving cannot help ends the step where it occurs: at once for the whole
+    /// step, and at the first half of a step cut once (its second half is not taken).
+    #[test]
+    fn hopeless_failures_are_not_halved() {
+        for (longest, expected) in [(2.0, vec![(0.0, 1.0)]), (0.6, vec![(0.0, 1.0), (0.0, 0.5)])] {
+            let mut taken = Vec::new();
+            let mut step = |a: f64, b: f64| -> Result<u32, Failure> {
+                taken.push((a, b));
+                Err(if b - a > longest { Failure::TooLong } else { Failure::Hopeless })
+            };
+            let result = bisect(0.0, 1.0, 5, &mut step, &|x, y| x + y);
+            assert_eq!((result, taken), (Err(Failure::Hopeless), expected));
+        }
+    }
 
     /// A step "fails" when it is longer than 0.3: [0, 1] needs two cuts (quarters), and
     /// the sub-steps tile [0, 1] in order.

@@ -54,6 +54,9 @@ pub enum EigenError {
         /// The factorization's failure.
         source: LinearError,
     },
+    /// K − σM's factorization could not allocate its memory.
+    #[error("{0}")]
+    OutOfMemory(LinearError),
     /// Fewer eigenpairs converged than asked for.
     #[error("the Lanczos iteration converged {found} of {wanted} eigenpairs")]
     NotConverged {
@@ -222,9 +225,10 @@ impl Pencil<'_> {
         match shift {
             Shift::Nearest(sigma) => {
                 self.assemble_shifted(solver, sigma);
-                solver
-                    .factor(true)
-                    .map_err(|source| EigenError::Singular { shift: sigma, source })?;
+                solver.factor(true).map_err(|source| match source {
+                    LinearError::OutOfMemory { .. } => EigenError::OutOfMemory(source),
+                    LinearError::Singular { .. } => EigenError::Singular { shift: sigma, source },
+                })?;
                 Ok(sigma)
             }
             Shift::Lowest => {

@@ -15,7 +15,8 @@ use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, LdltRef, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
 };
 use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuRef, NumericLu, SymbolicLu};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::sparse::linalg::LuError;
+use faer::sparse::{FaerError, SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
 
 use super::backoff::Backoff;
@@ -23,7 +24,7 @@ use super::low_rank::MOST_NEW;
 use super::small_solve::{cholesky_in_place, cholesky_solve_in_place, SMALL_FACTOR, SMALL_SOLVE};
 
 /// Why a factorization or solve failed.
-#[derive(Debug, thiserror::Error, PartialEq)]
+#[derive(Clone, Debug, thiserror::Error, PartialEq)]
 pub enum LinearError {
     /// The matrix is singular (or, for the sparse path, not factorizable) at free DOF
     /// `dof`, an index in the caller's numbering (the matrix's row/column). `ratio`: the
@@ -34,6 +35,14 @@ pub enum LinearError {
         dof: Option<usize>,
         /// |pivot| / largest |pivot|, if measured.
         ratio: Option<f64>,
+    },
+    /// The sparse LU (the fallback for a matrix Cholesky and LDLᵀ cannot take) could not
+    /// allocate its factor: its fill is decided while it factors, so no earlier step can
+    /// reserve it.
+    #[error("the sparse LU factorization of the {dofs}-DOF matrix could not allocate its memory")]
+    OutOfMemory {
+        /// The matrix's order (free DOFs).
+        dofs: usize,
     },
 }
 
@@ -631,17 +640,32 @@ impl TangentSolver for SparseSolver {
             dof: self.failed_pivot,
             ratio: None,
         };
-        let (symbolic, numeric, mem) = self.lu.get_or_insert_with(|| {
-            let symbolic = factorize_symbolic_lu(structure, Default::default()).expect("symbolic LU of a valid pattern");
+        let out_of_memory = LinearError::OutOfMemory { dofs: n };
+        if self.lu.is_none() {
+            let symbolic = factorize_symbolic_lu(structure, Default::default()).map_err(|e| match e {
+                FaerError::OutOfMemory => out_of_memory.clone(),
+                e => panic!("symbolic LU of a valid pattern: {e:?}"),
+            })?;
             let req = StackReq::any_of(&[
                 symbolic.factorize_numeric_lu_scratch::<f64>(Par::Seq, Default::default()),
                 symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
             ]);
-            (symbolic, NumericLu::new(), MemBuffer::new(req))
-        });
-        symbolic
+            let mem = MemBuffer::try_new(req).map_err(|_| out_of_memory.clone())?;
+            self.lu = Some((symbolic, NumericLu::new(), mem));
+        }
+        let (symbolic, numeric, mem) = self.lu.as_mut().expect("set up above");
+        let result = symbolic
             .factorize_numeric_lu(numeric, a, Par::Seq, MemStack::new(mem), Default::default())
-            .map_err(|_| singular)?;
+            .map(|_| ());
+        if result.is_err() {
+            // A factorization cut short leaves faer's storage inconsistent (the next one
+            // panics on it): start the next from empty storage.
+            *numeric = NumericLu::new();
+        }
+        result.map_err(|e| match e {
+            LuError::Generic(FaerError::OutOfMemory) => out_of_memory,
+            _ => singular,
+        })?;
         self.factored = Factored::Lu;
         Ok(())
     }

@@ -12,7 +12,7 @@ mod newton;
 pub mod ordering;
 pub mod small_solve;
 
-pub use bisect::bisect;
+pub use bisect::{bisect, StepFailure};
 pub use dense_eigen::symmetric_eigen;
 pub use eigen::{krylov_dimension, lowest_eigen, partial_eigen, Diagonal, EigenError, EigenPairs, Shift};
 pub use linear::{DenseSolver, LinearError, ScaledSink, SparseSolver, Sparsity, TangentSink, TangentSolver};

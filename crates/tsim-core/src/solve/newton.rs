@@ -1,4 +1,5 @@
 use super::backoff::Backoff;
+use super::bisect::StepFailure;
 use super::linear::{dof_text, ratio_text, DenseSolver, LinearError, SparseSolver, Sparsity, TangentSink, TangentSolver};
 use super::low_rank::LowRank;
 
@@ -317,6 +318,13 @@ pub enum SolveError {
         /// |pivot| / largest |pivot|, if measured.
         ratio: Option<f64>,
     },
+    /// The tangent's sparse LU could not allocate its memory (see
+    /// [`LinearError::OutOfMemory`]): an environment's limit, not the equation's; a
+    /// smaller step is not tried ([`StepFailure`]).
+    OutOfMemory {
+        /// The tangent's order (free DOFs).
+        dofs: usize,
+    },
 }
 
 impl SolveError {
@@ -326,13 +334,27 @@ impl SolveError {
         match *self {
             SolveError::NotConverged { worst_dof, .. } | SolveError::Cycling { worst_dof, .. } => Some(worst_dof),
             SolveError::NonFinite { dof, .. } | SolveError::Singular { dof, .. } => dof,
+            SolveError::OutOfMemory { .. } => None,
         }
     }
 }
 
 impl From<LinearError> for SolveError {
-    fn from(LinearError::Singular { dof, ratio }: LinearError) -> Self {
-        SolveError::Singular { dof, ratio }
+    fn from(error: LinearError) -> Self {
+        match error {
+            LinearError::Singular { dof, ratio } => SolveError::Singular { dof, ratio },
+            LinearError::OutOfMemory { dofs } => SolveError::OutOfMemory { dofs },
+        }
+    }
+}
+
+/// A step halved where it failed may succeed: not where the failure was the machine's
+/// memory. (A smaller Δt can make the step matrix positive definite, so Cholesky would
+/// take it without the LU's memory, but that trades an environment's limit for steps
+/// nobody asked for, each paying a failed LU first; the user's fix is memory.)
+impl StepFailure for SolveError {
+    fn smaller_step_may_help(&self) -> bool {
+        !matches!(self, SolveError::OutOfMemory { .. })
     }
 }
 
@@ -395,6 +417,11 @@ impl SolveError {
                 "singular tangent stiffness at {}{}: a mechanism or instability there",
                 at(dof),
                 ratio_text(ratio)
+            ),
+            SolveError::OutOfMemory { dofs } => format!(
+                "{}: give the case more memory (fewer cases at once, `--jobs`; a higher limit, `ulimit -v`); \
+                 `tsim check` estimates each case's memory",
+                LinearError::OutOfMemory { dofs }
             ),
         }
     }
