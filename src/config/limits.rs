@@ -14,6 +14,7 @@ use super::sequence::Section;
 use crate::model::Model;
 use crate::solve::{krylov_dimension, LinearSolverChoice, DENSE_LIMIT};
 use crate::stage::eigen::ModeSolver;
+use crate::stage::planned_factor_nonzeros;
 
 /// Default limit on the estimated output of one run [GB]: far above the runs tsim ships
 /// (configs/sweep.yaml, 27 cases, about 2 GB uncompressed) and below a laptop's free disk
@@ -151,11 +152,19 @@ const MEMORY_PER_MEMBER: f64 = 800.0;
 /// a frame when frames are larger (`output::background`, `output::h5`), MCAP's chunk.
 const WRITER_BLOCKS: f64 = 16.0;
 const WRITER_FIXED: f64 = 16e6;
-/// The sparse Cholesky factor, its LU fallback and, in time stepping, the held factor's
-/// low-rank corrections (at most nnz(L) values, `solve/low_rank.rs`), taken as this many
-/// times the tangent's pattern (fill-in depends on the ordering; the dense stability
-/// checks dominate long before this term does).
-const SPARSE_FILL: f64 = 20.0;
+/// Copies of the sparse Cholesky factor's values (8 nnz(L) bytes, nnz(L) from the solver's
+/// own symbolic analysis) a sparse Newton holds: the factor and, in time stepping, the
+/// held factor's low-rank corrections (at most nnz(L) values, `solve/low_rank.rs`).
+const CHOLESKY_COPIES: f64 = 2.0;
+/// The sparse LU's heap at its peak (factors, symbolic analysis, scratch) in multiples of
+/// the Cholesky factor's values on the same pattern, where steps are unsymmetric (objective
+/// damping, the energy–momentum scheme). Measured by examples/bench_factor on quadruplex
+/// grids (2026-12-08): 7.8 at 3.8k DOF, 10.7 at 20k, 9.7 at 52k, 11.2 at 100k, 12.0 at
+/// 204k, 12.4 at 362k — COLAMD's column order fills the LU far more than the dissection
+/// fills Cholesky, increasingly with size; the deployments' own RSS agrees (100k: +1.2 GiB
+/// against 1.55 GB there, 362k: +6.3 GiB against 7.2 GB). 13 covers those and the trend to
+/// 1M DOF. A symmetric case's LU (a fallback where LDLᵀ fails) is not counted.
+const LU_PEAK: f64 = 13.0;
 /// Bytes of a row of a kept table's CSV at most: two shortest round-trip f64 (24 each at
 /// most, `-1.2345678901234567e-300`), a comma and a newline.
 const TABLE_CSV_ROW: f64 = 50.0;
@@ -187,6 +196,8 @@ struct Sizes {
     h5: bool,
     mcap: bool,
     paraview: bool,
+    /// Nonzeros of the sparse Cholesky factor of the tangent (its symbolic analysis).
+    factor: f64,
 }
 
 impl Sizes {
@@ -199,6 +210,7 @@ impl Sizes {
             h5: cfg.outputs.hdf5,
             mcap: cfg.outputs.mcap,
             paraview: cfg.outputs.paraview,
+            factor: planned_factor_nonzeros(model) as f64,
         }
     }
 
@@ -227,10 +239,10 @@ impl Sizes {
             )
     }
 
-    /// The partial eigensolver's sparse factorization (as Newton's) and its Krylov basis,
-    /// n × (dimension + 1) plus as much again while restarting.
+    /// The partial eigensolver's sparse matrix and Cholesky factor (Newton's pattern) and
+    /// its Krylov basis, n × (dimension + 1) plus as much again while restarting.
     fn partial_bytes(&self, modes: usize) -> f64 {
-        self.pattern() * 16.0 * (1.0 + SPARSE_FILL) + 2.0 * 8.0 * self.n * (krylov_dimension(modes) + 1) as f64
+        self.pattern() * 16.0 + 8.0 * self.factor + 2.0 * 8.0 * self.n * (krylov_dimension(modes) + 1) as f64
     }
 
     /// Entries of the sparse tangent (a 3 × 3 block per node and two per member) [count].
@@ -362,10 +374,12 @@ impl CaseConfig {
                 bytes: 2.0 * dense(n),
             }
         } else {
+            let lu = self.stage_sections().iter().any(|(_, _, spec)| spec.unsymmetric_steps());
+            let (nnz, lu_text) = (s.factor, if lu { ", and the sparse LU of its unsymmetric steps" } else { "" });
             Part {
                 field: "model".into(),
-                what: format!("Newton's sparse tangent on {n} free DOF, its factor taken as {SPARSE_FILL}× the pattern"),
-                bytes: s.pattern() * 16.0 * (1.0 + SPARSE_FILL),
+                what: format!("Newton's sparse tangent on {n} free DOF, its Cholesky factor ({nnz} nonzeros){lu_text}"),
+                bytes: s.pattern() * 16.0 + 8.0 * s.factor * (CHOLESKY_COPIES + if lu { LU_PEAK } else { 0.0 }),
             }
         };
         let stability = if ModeSolver::lowest(1).partial(n as usize) {
@@ -406,7 +420,47 @@ impl CaseConfig {
 
 #[cfg(test)]
 mod tests {
-    use super::bytes_text;
+    use super::{bytes_text, CHOLESKY_COPIES, LU_PEAK};
+    use crate::config::parse_case;
+    use crate::solve::SparseSolver;
+    use crate::tsm::{tangent_sparsity, DofMap};
+
+    /// A 20 × 20 grid's sparse Newton (3 836 free DOF) is estimated from its own Cholesky
+    /// factor — the nonzeros of the solver a stage builds — and, with a damped deployment
+    /// (objective damping: unsymmetric steps), also the sparse LU's peak on top.
+    #[test]
+    fn a_sparse_estimate_counts_the_solvers_factor_and_the_lu_of_unsymmetric_steps() {
+        let case = |damped: bool| {
+            let text = format!(
+                "name: g\nmodel:\n  grid: {{ nx: 20, ny: 20 }}\nformfinding: {{}}\n\
+                 substitution: {{ strut: aluminium, cable: steel_cable, prestress_scale: 100.0 }}\n\
+                 eigen:\n  solver: partial\n  modes: 20\n  rayleigh: {{ modes: [1, 20], ratios: [0.02, 0.02] }}\n\
+                 deployment: {{ dt: 0.001, duration: 0.01, damped: {damped} }}\noutputs: {{ hdf5: false, mcap: false }}\n"
+            );
+            let cfg = parse_case(&text, "g.yaml").unwrap_or_else(|e| panic!("{e}"));
+            let model = cfg.model.build().unwrap();
+            (cfg.estimate(&model), model)
+        };
+        let ((damped, model), (undamped, _)) = (case(true), case(false));
+        let dofs = DofMap::new(&model, &[]);
+        let nnz = SparseSolver::new(dofs.len(), tangent_sparsity(&model, &dofs)).factor_nonzeros() as f64;
+        assert!(nnz > 0.0);
+        assert!(
+            damped
+                .memory_part
+                .what
+                .contains(&format!("Cholesky factor ({nnz} nonzeros), and the sparse LU")),
+            "{}",
+            damped.memory_part.what
+        );
+        assert!(!undamped.memory_part.what.contains("LU"), "{}", undamped.memory_part.what);
+        // The part, exactly: the tangent's values and indices, two copies of the factor's
+        // values and the LU's peak.
+        let pattern = 9.0 * model.node_count() as f64 + 18.0 * model.members.len() as f64;
+        let expected = 16.0 * pattern + 8.0 * nnz * (CHOLESKY_COPIES + LU_PEAK);
+        assert_eq!(damped.memory_part.bytes, expected);
+        assert!(undamped.memory < damped.memory);
+    }
 
     #[test]
     fn bytes_read_in_decimal_units() {

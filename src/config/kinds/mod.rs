@@ -80,6 +80,12 @@ pub(in crate::config) trait StageSpec: std::fmt::Debug {
     fn eigen(&self) -> Option<&EigenSpec> {
         None
     }
+
+    /// Whether its steps' matrices are unsymmetric, so factored by the sparse LU, for the
+    /// memory estimate.
+    fn unsymmetric_steps(&self) -> bool {
+        false
+    }
 }
 
 /// What an entry's checks may refer to.

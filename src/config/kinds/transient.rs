@@ -5,7 +5,7 @@ use super::{EntryCheck, EntryPlan, StageSpec, Steps};
 use crate::config::loading::{ActuationSpec, InitialAcceleration, NodalVectorSpec, TimeFunctionSpec};
 use crate::config::schema::{LoadSpec, TransientSpec};
 use crate::config::validate::{check_cuts, check_steps, unknown_stage, Problems};
-use crate::dynamics::{Actuator, GroundMotion, Loads, NewmarkParams, NodalLoad, Rayleigh, Scheme, TimeFunction};
+use crate::dynamics::{Actuator, DampingTangent, GroundMotion, Loads, NewmarkParams, NodalLoad, Rayleigh, Scheme, TimeFunction};
 use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::record::{Stage, StageKind};
@@ -101,6 +101,13 @@ impl StageSpec for TransientSpec {
             how,
             dynamic: true,
         })
+    }
+
+    /// Objective damping's Jacobian is unsymmetric (taken by Cholesky on its symmetric
+    /// part only while the skew part is small), and so is the energy–momentum scheme's.
+    fn unsymmetric_steps(&self) -> bool {
+        let damped = self.damped || self.rayleigh_from.is_some();
+        (damped && self.damping_tangent == DampingTangent::Objective) || self.scheme == Scheme::EnergyMomentum
     }
 }
 

@@ -393,43 +393,8 @@ const LDLT_CHECK: f64 = 1e-6;
 impl SparseSolver {
     /// A solver for n × n matrices of the shape `sparsity` gives; the symbolic analysis
     /// is done here, once.
-    pub fn new<P: IntoIterator<Item = (usize, usize)>>(n: usize, Sparsity { entries, order }: Sparsity<P>) -> Self {
-        let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n];
-        for (r, c) in entries {
-            cols[c].push(r);
-        }
-        let mut col_ptr = Vec::with_capacity(n + 1);
-        let mut row_idx = Vec::new();
-        col_ptr.push(0);
-        for (c, mut rows) in cols.into_iter().enumerate() {
-            rows.push(c);
-            rows.sort_unstable();
-            rows.dedup();
-            row_idx.extend(rows);
-            col_ptr.push(row_idx.len());
-        }
-        let structure = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-        let analyse = |ordering| {
-            factorize_symbolic_cholesky(structure, Side::Lower, ordering, Default::default()).expect("symbolic Cholesky of a valid pattern")
-        };
-        let amd = analyse(SymmetricOrdering::Amd);
-        // The given order where its factor is smaller than AMD's (a dissection wins on a
-        // plate, AMD on a long, thin tower: see `ordering.rs`).
-        let symbolic = match order {
-            Some(fwd) => {
-                let mut inv = vec![0; n];
-                for (new, &old) in fwd.iter().enumerate() {
-                    inv[old] = new;
-                }
-                let given = analyse(SymmetricOrdering::Custom(PermRef::new_checked(&fwd, &inv, n)));
-                if given.len_val() < amd.len_val() {
-                    given
-                } else {
-                    amd
-                }
-            }
-            None => amd,
-        };
+    pub fn new<P: IntoIterator<Item = (usize, usize)>>(n: usize, sparsity: Sparsity<P>) -> Self {
+        let (col_ptr, row_idx, symbolic) = analyse(n, sparsity);
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
             symbolic.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()),
@@ -453,6 +418,58 @@ impl SparseSolver {
             cholesky_first: Backoff::default(),
         }
     }
+
+    /// Nonzeros of the Cholesky factor a solver built on `sparsity` would hold
+    /// ([`SparseSolver::factor_nonzeros`]), from the symbolic analysis alone: no storage
+    /// for values (a memory estimate's).
+    pub fn planned_factor_nonzeros<P: IntoIterator<Item = (usize, usize)>>(n: usize, sparsity: Sparsity<P>) -> usize {
+        analyse(n, sparsity).2.len_val()
+    }
+}
+
+/// The pattern of n × n matrices of the shape `sparsity` gives, compressed by columns (both
+/// triangles and the diagonal, rows sorted), and its symbolic Cholesky factor.
+fn analyse<P: IntoIterator<Item = (usize, usize)>>(
+    n: usize,
+    Sparsity { entries, order }: Sparsity<P>,
+) -> (Vec<usize>, Vec<usize>, SymbolicCholesky<usize>) {
+    let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (r, c) in entries {
+        cols[c].push(r);
+    }
+    let mut col_ptr = Vec::with_capacity(n + 1);
+    let mut row_idx = Vec::new();
+    col_ptr.push(0);
+    for (c, mut rows) in cols.into_iter().enumerate() {
+        rows.push(c);
+        rows.sort_unstable();
+        rows.dedup();
+        row_idx.extend(rows);
+        col_ptr.push(row_idx.len());
+    }
+    let structure = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+    let analyse = |ordering| {
+        factorize_symbolic_cholesky(structure, Side::Lower, ordering, Default::default()).expect("symbolic Cholesky of a valid pattern")
+    };
+    let amd = analyse(SymmetricOrdering::Amd);
+    // The given order where its factor is smaller than AMD's (a dissection wins on a
+    // plate, AMD on a long, thin tower: see `ordering.rs`).
+    let symbolic = match order {
+        Some(fwd) => {
+            let mut inv = vec![0; n];
+            for (new, &old) in fwd.iter().enumerate() {
+                inv[old] = new;
+            }
+            let given = analyse(SymmetricOrdering::Custom(PermRef::new_checked(&fwd, &inv, n)));
+            if given.len_val() < amd.len_val() {
+                given
+            } else {
+                amd
+            }
+        }
+        None => amd,
+    };
+    (col_ptr, row_idx, symbolic)
 }
 
 impl SparseSolver {

@@ -19,10 +19,11 @@ pub mod transient;
 pub use statics::StaticEquilibrium;
 
 use crate::error::{Error, Result};
+use crate::model::Model;
 use crate::record::{RecordError, Recorder};
-use crate::solve::{NewtonSettings, SolveError};
+use crate::solve::{NewtonSettings, SolveError, SparseSolver};
 use crate::structure::{State, Structure};
-use crate::tsm::DofMap;
+use crate::tsm::{tangent_sparsity, DofMap};
 
 /// Settings every stage of a case shares.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -40,6 +41,13 @@ impl Default for Settings {
             every: 1,
         }
     }
+}
+
+/// Nonzeros of the sparse Cholesky factor a stage's Newton solver holds on `model` (free
+/// of supports only), from its symbolic analysis alone: for a memory estimate.
+pub fn planned_factor_nonzeros(model: &Model) -> usize {
+    let dofs = DofMap::new(model, &[]);
+    SparseSolver::planned_factor_nonzeros(dofs.len(), tangent_sparsity(model, &dofs))
 }
 
 /// The equilibrium check of a recording stage, in its summary: the largest out-of-balance
@@ -98,7 +106,7 @@ fn solve_error<'a>(
 /// not refused up front: a loaded structure free to move has an equilibrium where the load
 /// holds it (a pendulum hangs under gravity, stiffened by its tension), none where the
 /// load pushes it along the free motion; only the solve can tell.
-fn name_free_motion<'a>(model: &'a crate::model::Model, prescribed: &'a [[bool; 3]]) -> impl FnOnce(Error) -> Error + 'a {
+fn name_free_motion<'a>(model: &'a Model, prescribed: &'a [[bool; 3]]) -> impl FnOnce(Error) -> Error + 'a {
     move |error| match model.require_supports(prescribed) {
         Ok(()) => error,
         Err(free) => Error::Explained {
@@ -122,7 +130,7 @@ fn require_apart(asm: &crate::tsm::Assembly, stage: &str) -> Result<()> {
 
 /// Refuses `actuators` that change part of a clustered cable of `model` in `stage`
 /// ([`crate::model::Model::check_cluster_actuation`]).
-fn whole_cables(model: &crate::model::Model, actuators: &[crate::dynamics::Actuator], stage: &str) -> Result<()> {
+fn whole_cables(model: &Model, actuators: &[crate::dynamics::Actuator], stage: &str) -> Result<()> {
     model
         .check_cluster_actuation(actuators.iter().map(|a| a.members.as_slice()))
         .map_err(|reason| Error::Stage {
