@@ -1,4 +1,4 @@
-//! A sparse LU that cannot allocate its memory says so: `LinearError::OutOfMemory`, a
+//! A sparse LU (or GMRES) that cannot allocate its memory says so: `LinearError::OutOfMemory`, a
 //! Newton `SolveError::OutOfMemory` that a time step does not try to halve, and a case
 //! error that tells the user to give the case memory — not "singular tangent" and a
 //! string of cut steps, which is what a run under `ulimit -v` reported before.
@@ -19,7 +19,7 @@ use std::cell::Cell;
 use tsim::config::parse_case;
 use tsim::pipeline::run_case;
 use tsim::record::{Constraints, Frame, RecordResult, Recorder, Stage};
-use tsim::solve::{LinearError, LinearSolverChoice, SparseSolver, Sparsity, TangentSink, TangentSolver};
+use tsim::solve::{LinearError, LinearSolverChoice, SparseSolver, Sparsity, TangentSink, TangentSolver, KRYLOV_SOLVE, SPARSE_LU};
 
 struct Refusing;
 
@@ -118,10 +118,13 @@ fn neighbours(m: usize, i: usize) -> impl Iterator<Item = usize> {
 }
 
 /// The grid operator's entry (i, j): a diagonally dominant Laplacian plus a skew part
-/// along x (as a convection term) — unsymmetric, so the sparse LU's case.
-fn entry(i: usize, j: usize) -> f64 {
+/// along x (as a convection term) — unsymmetric, so not Cholesky's case. With `definite`
+/// its symmetric part is positive definite (GMRES on that part's factor solves it),
+/// without it the diagonal alternates in sign (the LU's case).
+fn entry(definite: bool, i: usize, j: usize) -> f64 {
     match () {
-        _ if i == j => 5.0,
+        _ if i == j && (definite || i % 2 == 0) => 5.0,
+        _ if i == j => -5.0,
         _ if j == i + 1 => -0.6,
         _ if j + 1 == i => -1.4,
         _ => -1.0,
@@ -141,8 +144,8 @@ fn grid_pattern(m: usize) -> (Vec<usize>, Vec<usize>) {
     (col_ptr, row_idx)
 }
 
-/// A sparse solver holding the m × m grid operator, and its order.
-fn unsymmetric_grid(m: usize) -> (SparseSolver, usize) {
+/// A sparse solver holding the m × m grid operator ([`entry`]), and its order.
+fn unsymmetric_grid(m: usize, definite: bool) -> (SparseSolver, usize) {
     let n = m * m;
     let entries: Vec<(usize, usize)> = (0..n)
         .flat_map(|i| std::iter::once(i).chain(neighbours(m, i)).map(move |j| (i, j)))
@@ -150,20 +153,31 @@ fn unsymmetric_grid(m: usize) -> (SparseSolver, usize) {
     let mut solver = SparseSolver::new(n, Sparsity::amd(entries));
     for i in 0..n {
         for j in std::iter::once(i).chain(neighbours(m, i)) {
-            solver.add(i, j, entry(i, j));
+            solver.add(i, j, entry(definite, i, j));
         }
     }
     (solver, n)
 }
 
-/// Solves with `solver` for a known x (x_i = i mod 7) and returns max |x − x_exact|.
-fn solve_error(m: usize, solver: &mut SparseSolver) -> f64 {
+/// Whether `solver` solves the operator for a known x (x_i = i mod 7) as accurately as
+/// its method promises: ‖x − x_exact‖₂ ≤ 2e-10 ‖b‖₂. The operator is diagonally dominant
+/// by 1 in rows and columns (5 against 0.6 + 1.4 + 1 + 1), so ‖A⁻¹‖₂ ≤ 1 and the error is
+/// at most the residual: GMRES's 1e-10 ‖b‖₂ (`KRYLOV_TOLERANCE`), LU's round-off; twice
+/// that for the round-off of the residual's own recurrence.
+fn solves(m: usize, definite: bool, solver: &mut SparseSolver) -> bool {
     let exact: Vec<f64> = (0..m * m).map(|i| (i % 7) as f64).collect();
-    let mut b: Vec<f64> = (0..m * m)
-        .map(|i| std::iter::once(i).chain(neighbours(m, i)).map(|j| entry(i, j) * exact[j]).sum())
+    let b: Vec<f64> = (0..m * m)
+        .map(|i| {
+            std::iter::once(i)
+                .chain(neighbours(m, i))
+                .map(|j| entry(definite, i, j) * exact[j])
+                .sum()
+        })
         .collect();
-    solver.solve(&mut b).unwrap();
-    b.iter().zip(&exact).map(|(a, e)| (a - e).abs()).fold(0.0, f64::max)
+    let mut x = b.clone();
+    solver.solve(&mut x).unwrap();
+    let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|e| e * e).sum::<f64>().sqrt();
+    norm(&mut x.iter().zip(&exact).map(|(a, e)| a - e)) <= 2e-10 * norm(&mut b.iter().copied())
 }
 
 /// The allocations of the LU's symbolic analysis of the m × m grid's pattern, as the
@@ -180,49 +194,63 @@ fn symbolic_allocations(m: usize) -> (u64, bool) {
     (made, format!("{symbolic:?}").contains("Supernodal"))
 }
 
-/// Every allocation of the sparse LU's numeric factorization, refused in turn, gives
-/// `OutOfMemory` naming the matrix's order — and the solver stays usable: factored again
-/// with memory, it solves to round-off. A 6 × 6 grid takes faer's simplicial LU (every
-/// allocation refused in turn), a 100 × 100 one its supernodal LU (every one of
-/// [`SUPERNODAL_SMALLEST`] or more).
+/// The allocations `factor(false)` makes on a fresh m × m operator, after one
+/// factorization on this thread (the first LU on a thread also sets up the dense kernels'
+/// thread-local workspace, private-gemm-x86's 4 MiB of pages, infallibly, once).
+fn factor_allocations(m: usize, definite: bool) -> u64 {
+    unsymmetric_grid(m, definite).0.factor(false).unwrap();
+    let (mut fresh, _) = unsymmetric_grid(m, definite);
+    let before = allocations();
+    fresh.factor(false).unwrap();
+    let made = allocations() - before;
+    assert!(solves(m, definite, &mut fresh), "{m} × {m}");
+    made
+}
+
+/// Every allocation of an unsymmetric matrix's solver set-up, refused in turn, gives
+/// `OutOfMemory` naming the matrix's order and what needed the memory — and the solver
+/// stays usable: factored again with memory, it solves to round-off. An operator whose
+/// symmetric part is indefinite goes through GMRES's set-up (its basis, the symmetric
+/// part: `KRYLOV_SOLVE`), Cholesky's failure, the LU's symbolic analysis (not refused: see
+/// the module's note) and its numeric factorization (`SPARSE_LU`). A 6 × 6 grid takes
+/// faer's simplicial LU (every allocation refused in turn), a 100 × 100 one its supernodal
+/// LU (every one of [`SUPERNODAL_SMALLEST`] or more).
 #[test]
-fn each_allocation_the_lu_cannot_make_is_reported_as_out_of_memory() {
+fn each_allocation_the_solver_cannot_make_is_reported_as_out_of_memory() {
     for (m, supernodal, smallest) in [(6, false, 0), (100, true, SUPERNODAL_SMALLEST)] {
         SMALLEST.with(|s| s.set(smallest));
-        // The first LU on a thread also sets up the dense kernels' thread-local workspace
-        // (private-gemm-x86's 4 MiB of pages, infallibly), once: counted from the second.
-        let (mut first, _) = unsymmetric_grid(m);
-        first.factor(false).unwrap();
-        let (mut fresh, n) = unsymmetric_grid(m);
-        let before = allocations();
-        fresh.factor(false).unwrap();
-        let made = allocations() - before;
+        // A definite symmetric part: GMRES's set-up is all that factor(false) allocates.
+        let krylov = factor_allocations(m, true);
+        let made = factor_allocations(m, false);
         let (symbolic, chosen) = symbolic_allocations(m);
         assert_eq!(chosen, supernodal, "{m} × {m}: the factorization to cover");
-        assert!(made > symbolic, "{m} × {m}: the numeric LU allocated nothing to refuse");
-        assert!(solve_error(m, &mut fresh) < 1e-12, "{m} × {m}");
-        for k in symbolic..made {
-            let (mut solver, _) = unsymmetric_grid(m);
+        assert!(krylov > 0 && made > krylov + symbolic, "{m} × {m}: {krylov}, {symbolic} of {made}");
+        let n = m * m;
+        for k in (0..krylov).chain(krylov + symbolic..made) {
+            let (mut solver, _) = unsymmetric_grid(m, false);
             arm(k);
             let result = solver.factor(false);
             disarm();
+            let what = if k < krylov { KRYLOV_SOLVE } else { SPARSE_LU };
             assert_eq!(
                 result,
-                Err(LinearError::OutOfMemory { dofs: n }),
+                Err(LinearError::OutOfMemory { dofs: n, what }),
                 "{m} × {m}, allocation {k} of {made} refused"
             );
             solver.factor(false).unwrap();
-            // A diagonally dominant matrix, condition ≲ 10: the solve's error is round-off
-            // on entries ≤ 6.
-            assert!(solve_error(m, &mut solver) < 1e-12, "{m} × {m}, after refusing allocation {k}");
+            assert!(solves(m, false, &mut solver), "{m} × {m}, after refusing allocation {k}");
         }
-        eprintln!("{m} × {m}: each of the numeric LU's {} allocations of at least {smallest} bytes refused in turn (after {symbolic} symbolic ones)", made - symbolic);
+        eprintln!(
+            "{m} × {m}: each of the {krylov} allocations of GMRES's set-up and the {} of the numeric LU of at least {smallest} bytes \
+             refused in turn (after {symbolic} symbolic ones)",
+            made - krylov - symbolic
+        );
     }
 }
 
 /// Arms the allocator at the deployment's second frame (after its first step, which fills
-/// the solver's caches; later steps allocate nothing but the LU's set-up on its first
-/// need: tests/allocation.rs): the next allocation of a page or more is refused.
+/// the solver's caches; later steps allocate nothing but the unsymmetric solve's set-up on
+/// its first need: tests/allocation.rs): the next allocation of a page or more is refused.
 struct ArmAfterFirstStep {
     deployment: bool,
     frames: usize,
@@ -245,9 +273,10 @@ impl Recorder for ArmAfterFirstStep {
     }
 }
 
-/// The paper deployment on the sparse solver, its LU's first allocation refused: the case
-/// fails in that step with the memory named and the remedy, not "singular tangent"; and
-/// not after cut steps, since a halved step would have factored (the refusal is one-shot).
+/// The paper deployment on the sparse solver, the first allocation of its unsymmetric
+/// solve's set-up refused (GMRES's basis): the case fails in that step with the memory
+/// named and the remedy, not "singular tangent"; and not after cut steps, since a halved
+/// step would have succeeded (the refusal is one-shot).
 #[test]
 fn a_deployment_out_of_memory_says_so_and_is_not_cut() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/paper.yaml");
@@ -266,8 +295,7 @@ fn a_deployment_out_of_memory_says_so_and_is_not_cut() {
     let error = error.to_string();
     assert!(
         error.starts_with("deployment, step ")
-            && error.contains("the sparse LU factorization of the ")
-            && error.contains("could not allocate its memory")
+            && error.contains("-DOF matrix could not allocate its memory")
             && error.contains("`--jobs`")
             && !error.contains("singular")
             && !error.contains("smaller"),

@@ -20,6 +20,7 @@ use faer::sparse::{FaerError, SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
 
 use super::backoff::Backoff;
+use super::krylov::Gmres;
 use super::low_rank::MOST_NEW;
 use super::small_solve::{cholesky_in_place, cholesky_solve_in_place, SMALL_FACTOR, SMALL_SOLVE};
 
@@ -37,14 +38,21 @@ pub enum LinearError {
         ratio: Option<f64>,
     },
     /// The sparse LU (the fallback for a matrix Cholesky and LDLᵀ cannot take) could not
-    /// allocate its factor: its fill is decided while it factors, so no earlier step can
-    /// reserve it.
-    #[error("the sparse LU factorization of the {dofs}-DOF matrix could not allocate its memory")]
+    /// allocate its factor — its fill is decided while it factors, so no earlier step can
+    /// reserve it — or GMRES its basis.
+    #[error("{what} of the {dofs}-DOF matrix could not allocate its memory")]
     OutOfMemory {
         /// The matrix's order (free DOFs).
         dofs: usize,
+        /// What needed the memory: [`SPARSE_LU`] or [`KRYLOV_SOLVE`].
+        what: &'static str,
     },
 }
+
+/// [`LinearError::OutOfMemory`]'s `what` for the sparse LU.
+pub const SPARSE_LU: &str = "the sparse LU factorization";
+/// [`LinearError::OutOfMemory`]'s `what` for GMRES on the symmetric part's factor.
+pub const KRYLOV_SOLVE: &str = "the GMRES solve (its basis and the symmetric part)";
 
 /// "free DOF 3" for error messages (the caller that knows the model adds its name).
 pub(super) fn dof_text(dof: Option<usize>) -> String {
@@ -127,7 +135,8 @@ pub trait TangentSolver: TangentSink + Send {
     fn clear(&mut self);
     /// Factors the assembled matrix, replacing the previous factorization; the assembled
     /// matrix is consumed (clear before the next assembly). A `symmetric` matrix is tried
-    /// with Cholesky first (which reads one triangle only); any other goes to LU directly.
+    /// with Cholesky first (which reads one triangle only); any other goes to LU (the
+    /// sparse solver: to GMRES on its symmetric part's Cholesky first).
     fn factor(&mut self, symmetric: bool) -> Result<(), LinearError>;
     /// Factors the assembled (symmetric) matrix by Cholesky only: `false` where it is not
     /// positive definite, and then nothing is factored and the assembled matrix is kept
@@ -135,6 +144,11 @@ pub trait TangentSolver: TangentSink + Send {
     fn cholesky(&mut self) -> bool;
     /// Solves K x = rhs in place (rhs becomes x) with the last factorization.
     fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError>;
+    /// Factorizations solves made since the last call (a sparse solve whose GMRES did not
+    /// converge factors the matrix by LU), for Newton to count.
+    fn take_late_factorizations(&mut self) -> usize {
+        0
+    }
     /// Solves for several right-hand sides at once, `rhs` holding them one after another
     /// (n entries each). A solver may solve them as a block, which reads its factors once.
     fn solve_columns(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
@@ -152,6 +166,9 @@ enum Factored {
     Cholesky,
     /// Sparse LDLᵀ without pivoting (an indefinite symmetric matrix; [`LDLT_CHECK`]).
     Ldlt,
+    /// Sparse Cholesky of an unsymmetric matrix's symmetric part, the matrix solved by
+    /// GMRES with it ([`super::krylov`]), and by LU where that does not converge.
+    SymmetricPart,
     Lu,
 }
 
@@ -318,7 +335,7 @@ impl TangentSolver for DenseSolver {
                 let lu = self.k.as_ref().submatrix(0, 0, n, n);
                 lu_solve::solve_in_place_with_conj(lu, lu, perm, Conj::No, x, Par::Seq, stack)
             }
-            Factored::None | Factored::Ldlt => panic!("TangentSolver::solve before a successful factor()"),
+            Factored::None | Factored::Ldlt | Factored::SymmetricPart => panic!("TangentSolver::solve before a successful factor()"),
         }
         Ok(())
     }
@@ -350,7 +367,11 @@ impl<P> Sparsity<P> {
 /// A symmetric matrix that is not positive definite (a static solve through an unstable
 /// state, as in folding; a shift inside the spectrum) gets LDLᵀ on the same symbolic
 /// factor where it passes [`LDLT_CHECK`], else a sparse LU, whose symbolic analysis is
-/// likewise done once, on first need; an unsymmetric matrix goes to LU directly.
+/// likewise done once, on first need. An unsymmetric matrix (objective damping's step) is
+/// solved by GMRES preconditioned with the Cholesky factor of its symmetric part, on the
+/// same symbolic factor, and by LU where that part is not positive definite or GMRES does
+/// not converge: the LU's fill is 8–12 times Cholesky's on a structure (bench/pipeline.md),
+/// so a large model's deployment would otherwise not fit.
 pub struct SparseSolver {
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
@@ -368,6 +389,19 @@ pub struct SparseSolver {
     slots: Vec<Option<[u32; 36]>>,
     /// The LDLᵀ check's vector ([`LDLT_CHECK`]).
     check: Vec<f64>,
+    /// An unsymmetric matrix's symmetric part, each value slot's transposed slot, and the
+    /// GMRES that solves the matrix with that part's factor ([`Factored::SymmetricPart`]);
+    /// the first two empty until first needed.
+    symmetric_part: Vec<f64>,
+    transpose: Vec<u32>,
+    gmres: Gmres,
+    /// Whether an unsymmetric matrix is tried with GMRES on its symmetric part before LU
+    /// (which costs 6–10 Cholesky factorizations and 8–12 times their memory on a
+    /// structure: bench/pipeline.md).
+    krylov_first: Backoff,
+    /// LU factorizations made in a solve, where GMRES did not converge (see
+    /// [`TangentSolver::take_late_factorizations`]).
+    late_factorizations: usize,
     /// Whether a symmetric matrix is tried with Cholesky before LDLᵀ.
     ///
     /// Why a back-off: a Cholesky that fails costs up to a whole factorization, and with a
@@ -389,6 +423,16 @@ pub struct SparseSolver {
 /// an error of 1e-6 in Newton's direction slows it at most to a 1e-6 contraction per
 /// iteration, far inside the tenfold one it must keep (`REUSE_CONTRACTION`).
 const LDLT_CHECK: f64 = 1e-6;
+
+/// GMRES's relative residual for an unsymmetric matrix ([`Factored::SymmetricPart`]):
+/// Newton's increment then errs by about this fraction, as a direct solve's round-off
+/// does at a condition of 1e6, far inside the tenfold contraction Newton must keep.
+const KRYLOV_TOLERANCE: f64 = 1e-10;
+
+/// Most GMRES iterations before the matrix is factored by LU after all: each costs a
+/// solve with the Cholesky factor (about a tenth of a factorization, bench/pipeline.md)
+/// and a product with A, and the LU 6–10 factorizations.
+const KRYLOV_ITERATIONS: usize = 40;
 
 impl SparseSolver {
     /// A solver for n × n matrices of the shape `sparsity` gives; the symbolic analysis
@@ -415,6 +459,11 @@ impl SparseSolver {
             failed_pivot: None,
             slots: Vec::new(),
             check: vec![0.0; n],
+            symmetric_part: Vec::new(),
+            transpose: Vec::new(),
+            gmres: Gmres::default(),
+            krylov_first: Backoff::default(),
+            late_factorizations: 0,
             cholesky_first: Backoff::default(),
         }
     }
@@ -568,6 +617,120 @@ impl TangentSink for SparseSolver {
 }
 
 impl SparseSolver {
+    /// Sparse LU of the assembled matrix (its symbolic analysis on first need); a failure
+    /// is reported at the DOF of the last failed Cholesky pivot, as the LU names none.
+    fn lu_factor(&mut self) -> Result<(), LinearError> {
+        let n = self.col_ptr.len() - 1;
+        let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let a = SparseColMatRef::new(structure, &self.values);
+        let singular = LinearError::Singular {
+            dof: self.failed_pivot,
+            ratio: None,
+        };
+        let out_of_memory = LinearError::OutOfMemory { dofs: n, what: SPARSE_LU };
+        if self.lu.is_none() {
+            let symbolic = factorize_symbolic_lu(structure, Default::default()).map_err(|e| match e {
+                FaerError::OutOfMemory => out_of_memory.clone(),
+                e => panic!("symbolic LU of a valid pattern: {e:?}"),
+            })?;
+            let req = StackReq::any_of(&[
+                symbolic.factorize_numeric_lu_scratch::<f64>(Par::Seq, Default::default()),
+                symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+            ]);
+            let mem = MemBuffer::try_new(req).map_err(|_| out_of_memory.clone())?;
+            self.lu = Some((symbolic, NumericLu::new(), mem));
+        }
+        let (symbolic, numeric, mem) = self.lu.as_mut().expect("set up above");
+        let result = symbolic
+            .factorize_numeric_lu(numeric, a, Par::Seq, MemStack::new(mem), Default::default())
+            .map(|_| ());
+        if result.is_err() {
+            // A factorization cut short leaves faer's storage inconsistent (the next one
+            // panics on it): start the next from empty storage.
+            *numeric = NumericLu::new();
+        }
+        result.map_err(|e| match e {
+            LuError::Generic(FaerError::OutOfMemory) => out_of_memory,
+            _ => singular,
+        })?;
+        self.factored = Factored::Lu;
+        Ok(())
+    }
+
+    /// Cholesky of the assembled unsymmetric matrix's symmetric part ½(A + Aᵀ) (A kept for
+    /// GMRES's products; the transpose map and the part's storage made on first need):
+    /// `Ok(false)` where that part is not positive definite.
+    fn symmetric_part_cholesky(&mut self) -> Result<bool, LinearError> {
+        let n = self.col_ptr.len() - 1;
+        if self.transpose.is_empty() {
+            let out_of_memory = |_| LinearError::OutOfMemory {
+                dofs: n,
+                what: KRYLOV_SOLVE,
+            };
+            self.gmres.reserve(n, KRYLOV_ITERATIONS).map_err(out_of_memory)?;
+            let mut transpose = Vec::new();
+            transpose.try_reserve_exact(self.row_idx.len()).map_err(out_of_memory)?;
+            for c in 0..n {
+                for k in self.col_ptr[c]..self.col_ptr[c + 1] {
+                    transpose.push(self.slot(c, self.row_idx[k]) as u32);
+                }
+            }
+            self.symmetric_part.try_reserve_exact(self.values.len()).map_err(out_of_memory)?;
+            self.symmetric_part.resize(self.values.len(), 0.0);
+            self.transpose = transpose;
+        }
+        for (k, &t) in self.transpose.iter().enumerate() {
+            self.symmetric_part[k] = 0.5 * (self.values[k] + self.values[t as usize]);
+        }
+        let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
+        let a = SparseColMatRef::new(structure, &self.symmetric_part);
+        Ok(self
+            .symbolic
+            .factorize_numeric_llt(
+                &mut self.l_values,
+                a,
+                Side::Lower,
+                LltRegularization::default(),
+                Par::Seq,
+                MemStack::new(&mut self.mem),
+                Default::default(),
+            )
+            .is_ok())
+    }
+
+    /// Solves A x = rhs in place by GMRES preconditioned with the symmetric part's
+    /// Cholesky factor ([`Factored::SymmetricPart`]); `false` (rhs unchanged) where it did
+    /// not converge in [`KRYLOV_ITERATIONS`].
+    fn krylov_solve(&mut self, rhs: &mut [f64]) -> bool {
+        let SparseSolver {
+            col_ptr,
+            row_idx,
+            values,
+            symbolic,
+            l_values,
+            mem,
+            gmres,
+            ..
+        } = self;
+        let multiply = |x: &[f64], out: &mut [f64]| {
+            out.fill(0.0);
+            for (c, &xc) in x.iter().enumerate() {
+                for k in col_ptr[c]..col_ptr[c + 1] {
+                    out[row_idx[k]] += values[k] * xc;
+                }
+            }
+        };
+        let precondition = |v: &mut [f64]| {
+            let x = faer::ColMut::from_slice_mut(v).as_mat_mut();
+            LltRef::new(symbolic, l_values).solve_in_place_with_conj(Conj::No, x, Par::Seq, MemStack::new(mem));
+        };
+        gmres
+            .solve(rhs, KRYLOV_TOLERANCE, KRYLOV_ITERATIONS, multiply, precondition)
+            .is_some()
+    }
+}
+
+impl SparseSolver {
     /// [`TangentSolver::cholesky`], its outcome recorded in the back-off.
     fn recorded_cholesky(&mut self) -> bool {
         let positive = self.cholesky();
@@ -635,7 +798,6 @@ impl TangentSolver for SparseSolver {
     }
 
     fn factor(&mut self, symmetric: bool) -> Result<(), LinearError> {
-        let n = self.col_ptr.len() - 1;
         self.factored = Factored::None;
         self.failed_pivot = None;
         let tried = symmetric && self.cholesky_first.attempt();
@@ -651,44 +813,22 @@ impl TangentSolver for SparseSolver {
         if symmetric && !tried && self.recorded_cholesky() {
             return Ok(());
         }
-        let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        let a = SparseColMatRef::new(structure, &self.values);
-        let singular = LinearError::Singular {
-            dof: self.failed_pivot,
-            ratio: None,
-        };
-        let out_of_memory = LinearError::OutOfMemory { dofs: n };
-        if self.lu.is_none() {
-            let symbolic = factorize_symbolic_lu(structure, Default::default()).map_err(|e| match e {
-                FaerError::OutOfMemory => out_of_memory.clone(),
-                e => panic!("symbolic LU of a valid pattern: {e:?}"),
-            })?;
-            let req = StackReq::any_of(&[
-                symbolic.factorize_numeric_lu_scratch::<f64>(Par::Seq, Default::default()),
-                symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
-            ]);
-            let mem = MemBuffer::try_new(req).map_err(|_| out_of_memory.clone())?;
-            self.lu = Some((symbolic, NumericLu::new(), mem));
+        if !symmetric && self.krylov_first.attempt() {
+            if self.symmetric_part_cholesky()? {
+                self.factored = Factored::SymmetricPart;
+                return Ok(());
+            }
+            self.krylov_first.record(false);
         }
-        let (symbolic, numeric, mem) = self.lu.as_mut().expect("set up above");
-        let result = symbolic
-            .factorize_numeric_lu(numeric, a, Par::Seq, MemStack::new(mem), Default::default())
-            .map(|_| ());
-        if result.is_err() {
-            // A factorization cut short leaves faer's storage inconsistent (the next one
-            // panics on it): start the next from empty storage.
-            *numeric = NumericLu::new();
-        }
-        result.map_err(|e| match e {
-            LuError::Generic(FaerError::OutOfMemory) => out_of_memory,
-            _ => singular,
-        })?;
-        self.factored = Factored::Lu;
-        Ok(())
+        self.lu_factor()
     }
 
     fn size(&self) -> usize {
         self.col_ptr.len() - 1
+    }
+
+    fn take_late_factorizations(&mut self) -> usize {
+        std::mem::take(&mut self.late_factorizations)
     }
 
     /// Cholesky's and LDLᵀ's solves take the columns as one block (beyond [`MOST_NEW`]
@@ -714,6 +854,16 @@ impl TangentSolver for SparseSolver {
     }
 
     fn solve(&mut self, rhs: &mut [f64]) -> Result<(), LinearError> {
+        if self.factored == Factored::SymmetricPart {
+            let converged = self.krylov_solve(rhs);
+            self.krylov_first.record(converged);
+            if converged {
+                return Ok(());
+            }
+            // Too unsymmetric for GMRES at this cost: factor A after all.
+            self.late_factorizations += 1;
+            self.lu_factor()?;
+        }
         let x = faer::ColMut::from_slice_mut(rhs).as_mat_mut();
         match (self.factored, &mut self.lu) {
             (Factored::Cholesky, _) => {
@@ -897,6 +1047,53 @@ mod tests {
         let swaps: Vec<(usize, usize, f64)> = (0..32).flat_map(|k| [(2 * k, 2 * k + 1, 1.0), (2 * k + 1, 2 * k, 1.0)]).collect();
         let (factored, error) = sparse_solve(64, &swaps);
         assert_eq!(factored, Factored::Lu);
+        assert!(error < 1e-10, "LU error {error:e}");
+    }
+
+    /// A 30 × 30 grid Laplacian plus a skew part ±`skew` on its x-neighbours, solved as
+    /// unsymmetric: the factorization that served, max |x − x_true|, and the LU
+    /// factorizations its solves made.
+    fn unsymmetric_solve(solver: &mut SparseSolver, skew: f64) -> (Factored, f64, usize) {
+        let n = 900;
+        let x_true: Vec<f64> = (0..n).map(|i| 1.0 + (i % 7) as f64).collect();
+        let mut rhs = vec![0.0; n];
+        solver.clear();
+        for (i, j, v) in grid(30) {
+            let v = v + if j == i + 1 {
+                skew
+            } else if i == j + 1 {
+                -skew
+            } else {
+                0.0
+            };
+            solver.add(i, j, v);
+            rhs[i] += v * x_true[j];
+        }
+        solver.factor(false).expect("nonsingular");
+        let factored = solver.factored;
+        solver.solve(&mut rhs).expect("solvable");
+        let error = rhs.iter().zip(&x_true).fold(0.0_f64, |m, (x, t)| m.max((x - t).abs()));
+        (factored, error, solver.take_late_factorizations())
+    }
+
+    /// An unsymmetric matrix whose skew part is small against its symmetric part (as
+    /// objective damping's against the mass term) is solved by GMRES on the symmetric
+    /// part's Cholesky factor; one whose skew part dominates (±40 against a diagonal of at
+    /// most 5) does not converge in `KRYLOV_ITERATIONS` and is factored by LU in the solve,
+    /// counted, and the next one goes to LU directly (the back-off). Errors: GMRES's
+    /// relative residual 1e-10 times the conditioning (the Laplacian's smallest eigenvalue
+    /// is 1.01: ‖A⁻¹‖ ≲ 1, entries of x ≤ 7, ‖b‖ ≲ 1e3); LU's round-off.
+    #[test]
+    fn unsymmetric_matrices_go_to_gmres_on_their_symmetric_part_or_to_lu() {
+        let mut solver = SparseSolver::new(900, Sparsity::amd(grid(30).into_iter().map(|(i, j, _)| (i, j))));
+        let (factored, error, late) = unsymmetric_solve(&mut solver, 0.5);
+        assert_eq!((factored, late), (Factored::SymmetricPart, 0));
+        assert!(error < 1e-7, "GMRES error {error:e}");
+        let (factored, error, late) = unsymmetric_solve(&mut solver, 40.0);
+        assert_eq!((factored, solver.factored, late), (Factored::SymmetricPart, Factored::Lu, 1));
+        assert!(error < 1e-10, "LU error {error:e}");
+        let (factored, error, late) = unsymmetric_solve(&mut solver, 40.0);
+        assert_eq!((factored, late), (Factored::Lu, 0));
         assert!(error < 1e-10, "LU error {error:e}");
     }
 }

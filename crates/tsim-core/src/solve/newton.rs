@@ -318,12 +318,14 @@ pub enum SolveError {
         /// |pivot| / largest |pivot|, if measured.
         ratio: Option<f64>,
     },
-    /// The tangent's sparse LU could not allocate its memory (see
+    /// The tangent's sparse LU or GMRES solve could not allocate its memory (see
     /// [`LinearError::OutOfMemory`]): an environment's limit, not the equation's; a
     /// smaller step is not tried ([`StepFailure`]).
     OutOfMemory {
         /// The tangent's order (free DOFs).
         dofs: usize,
+        /// What needed the memory (see [`LinearError::OutOfMemory`]).
+        what: &'static str,
     },
 }
 
@@ -343,7 +345,7 @@ impl From<LinearError> for SolveError {
     fn from(error: LinearError) -> Self {
         match error {
             LinearError::Singular { dof, ratio } => SolveError::Singular { dof, ratio },
-            LinearError::OutOfMemory { dofs } => SolveError::OutOfMemory { dofs },
+            LinearError::OutOfMemory { dofs, what } => SolveError::OutOfMemory { dofs, what },
         }
     }
 }
@@ -418,10 +420,10 @@ impl SolveError {
                 at(dof),
                 ratio_text(ratio)
             ),
-            SolveError::OutOfMemory { dofs } => format!(
+            SolveError::OutOfMemory { dofs, what } => format!(
                 "{}: give the case more memory (fewer cases at once, `--jobs`; a higher limit, `ulimit -v`); \
                  `tsim check` estimates each case's memory",
-                LinearError::OutOfMemory { dofs }
+                LinearError::OutOfMemory { dofs, what }
             ),
         }
     }
@@ -611,6 +613,7 @@ fn step(
 ) -> Result<(), SolveError> {
     ws.d.copy_from_slice(&ws.r);
     ws.solver.solve(&mut ws.d)?;
+    ws.factorizations += ws.solver.take_late_factorizations();
     if let Some(low_rank) = &mut ws.low_rank {
         low_rank.correct(&mut ws.d);
     }
