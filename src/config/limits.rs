@@ -12,7 +12,7 @@ use super::kinds::Steps;
 use super::schema::{CaseConfig, EigenSpec};
 use super::sequence::Section;
 use crate::model::Model;
-use crate::solve::{krylov_dimension, LinearSolverChoice, DENSE_LIMIT};
+use crate::solve::{krylov_dimension, LinearSolverChoice, DENSE_LIMIT, KRYLOV_ITERATIONS};
 use crate::stage::eigen::ModeSolver;
 use crate::stage::planned_factor_nonzeros;
 
@@ -156,15 +156,13 @@ const WRITER_FIXED: f64 = 16e6;
 /// own symbolic analysis) a sparse Newton holds: the factor and, in time stepping, the
 /// held factor's low-rank corrections (at most nnz(L) values, `solve/low_rank.rs`).
 const CHOLESKY_COPIES: f64 = 2.0;
-/// The sparse LU's heap at its peak (factors, symbolic analysis, scratch) in multiples of
-/// the Cholesky factor's values on the same pattern, where steps are unsymmetric (objective
-/// damping, the energy–momentum scheme). Measured by examples/bench_factor on quadruplex
-/// grids (2026-12-08): 7.8 at 3.8k DOF, 10.7 at 20k, 9.7 at 52k, 11.2 at 100k, 12.0 at
-/// 204k, 12.4 at 362k — COLAMD's column order fills the LU far more than the dissection
-/// fills Cholesky, increasingly with size; the deployments' own RSS agrees (100k: +1.2 GiB
-/// against 1.55 GB there, 362k: +6.3 GiB against 7.2 GB). 13 covers those and the trend to
-/// 1M DOF. A symmetric case's LU (a fallback where LDLᵀ fails) is not counted.
-const LU_PEAK: f64 = 13.0;
+/// Bytes per tangent entry and per free DOF that solving unsymmetric steps adds (objective
+/// damping, the energy–momentum scheme): the matrix's symmetric part and its transpose map
+/// (12 B an entry), and GMRES's basis of `KRYLOV_ITERATIONS` + 1 vectors. The sparse LU
+/// it replaces (13 × the Cholesky factor's values: examples/bench_factor, bench/pipeline.md)
+/// is formed only where GMRES does not converge, and is not counted.
+const UNSYMMETRIC_PER_ENTRY: f64 = 12.0;
+const UNSYMMETRIC_PER_DOF: f64 = 8.0 * (KRYLOV_ITERATIONS + 1) as f64;
 /// Bytes of a row of a kept table's CSV at most: two shortest round-trip f64 (24 each at
 /// most, `-1.2345678901234567e-300`), a comma and a newline.
 const TABLE_CSV_ROW: f64 = 50.0;
@@ -374,19 +372,32 @@ impl CaseConfig {
                 bytes: 2.0 * dense(n),
             }
         } else {
-            let lu = self.stage_sections().iter().any(|(_, _, spec)| spec.unsymmetric_steps());
-            let (nnz, lu_text) = (s.factor, if lu { ", and the sparse LU of its unsymmetric steps" } else { "" });
+            let unsymmetric = self.stage_sections().iter().any(|(_, _, spec)| spec.unsymmetric_steps());
+            let (nnz, gmres) = (s.factor, if unsymmetric { ", and GMRES for its unsymmetric steps" } else { "" });
+            let gmres_bytes = if unsymmetric {
+                UNSYMMETRIC_PER_ENTRY * s.pattern() + UNSYMMETRIC_PER_DOF * n
+            } else {
+                0.0
+            };
             Part {
                 field: "model".into(),
-                what: format!("Newton's sparse tangent on {n} free DOF, its Cholesky factor ({nnz} nonzeros){lu_text}"),
-                bytes: s.pattern() * 16.0 + 8.0 * s.factor * (CHOLESKY_COPIES + if lu { LU_PEAK } else { 0.0 }),
+                what: format!("Newton's sparse tangent on {n} free DOF, its Cholesky factor ({nnz} nonzeros){gmres}"),
+                bytes: s.pattern() * 16.0 + 8.0 * s.factor * CHOLESKY_COPIES + gmres_bytes,
             }
         };
         let stability = if ModeSolver::lowest(1).partial(n as usize) {
+            // Form-finding's Newton solver (symmetric: one factor) is held while it runs.
+            let newton = if dense_newton {
+                2.0 * dense(n)
+            } else {
+                s.pattern() * 16.0 + 8.0 * s.factor
+            };
             Part {
                 field: "model".into(),
-                what: format!("substitution: the stability check's sparse factorization and Lanczos basis on {n} free DOF"),
-                bytes: s.partial_bytes(1),
+                what: format!(
+                    "form-finding: Newton's solver, and the stability check's sparse factorization and Lanczos basis on {n} free DOF"
+                ),
+                bytes: newton + s.partial_bytes(1),
             }
         } else {
             Part {
@@ -420,16 +431,17 @@ impl CaseConfig {
 
 #[cfg(test)]
 mod tests {
-    use super::{bytes_text, CHOLESKY_COPIES, LU_PEAK};
+    use super::{bytes_text, CHOLESKY_COPIES};
     use crate::config::parse_case;
     use crate::solve::SparseSolver;
+    use crate::solve::KRYLOV_ITERATIONS;
     use crate::tsm::{tangent_sparsity, DofMap};
 
     /// A 20 × 20 grid's sparse Newton (3 836 free DOF) is estimated from its own Cholesky
     /// factor — the nonzeros of the solver a stage builds — and, with a damped deployment
-    /// (objective damping: unsymmetric steps), also the sparse LU's peak on top.
+    /// (objective damping: unsymmetric steps), also GMRES's storage on top.
     #[test]
-    fn a_sparse_estimate_counts_the_solvers_factor_and_the_lu_of_unsymmetric_steps() {
+    fn a_sparse_estimate_counts_the_solvers_factor_and_gmres_for_unsymmetric_steps() {
         let case = |damped: bool| {
             let text = format!(
                 "name: g\nmodel:\n  grid: {{ nx: 20, ny: 20 }}\nformfinding: {{}}\n\
@@ -449,15 +461,16 @@ mod tests {
             damped
                 .memory_part
                 .what
-                .contains(&format!("Cholesky factor ({nnz} nonzeros), and the sparse LU")),
+                .contains(&format!("Cholesky factor ({nnz} nonzeros), and GMRES")),
             "{}",
             damped.memory_part.what
         );
-        assert!(!undamped.memory_part.what.contains("LU"), "{}", undamped.memory_part.what);
+        assert!(!undamped.memory_part.what.contains("GMRES"), "{}", undamped.memory_part.what);
         // The part, exactly: the tangent's values and indices, two copies of the factor's
-        // values and the LU's peak.
+        // values, the symmetric part with its transpose map and GMRES's basis.
         let pattern = 9.0 * model.node_count() as f64 + 18.0 * model.members.len() as f64;
-        let expected = 16.0 * pattern + 8.0 * nnz * (CHOLESKY_COPIES + LU_PEAK);
+        let free = 3.0 * model.node_count() as f64 - model.support_count() as f64;
+        let expected = 16.0 * pattern + 8.0 * nnz * CHOLESKY_COPIES + 12.0 * pattern + 8.0 * (KRYLOV_ITERATIONS + 1) as f64 * free;
         assert_eq!(damped.memory_part.bytes, expected);
         assert!(undamped.memory < damped.memory);
     }

@@ -156,8 +156,9 @@ pub struct Integrator {
 /// compression, so that it goes slack with a continuous force and the step equation has
 /// no jump there; a member slack at a step's start is undamped until the step ends
 /// (`tsm::DampingModulus`). Its Jacobian in the Newmark step is exact and not symmetric,
-/// so steps are factored by LU, or by Cholesky on its symmetric part where the skew part
-/// is small against the mass term.
+/// so steps are solved as unsymmetric (dense: LU; sparse: GMRES on the Cholesky factor of
+/// the symmetric part, LU where that fails), or by Cholesky on its symmetric part alone
+/// where the skew part is small against the mass term.
 ///
 /// The other three apply β K_T(x)·v with K_T at some state, as the paper does. None is
 /// objective: a rigidly rotating member gets an apparent axial rate (from the lagged or

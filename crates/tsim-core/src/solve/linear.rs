@@ -432,7 +432,7 @@ const KRYLOV_TOLERANCE: f64 = 1e-10;
 /// Most GMRES iterations before the matrix is factored by LU after all: each costs a
 /// solve with the Cholesky factor (about a tenth of a factorization, bench/pipeline.md)
 /// and a product with A, and the LU 6–10 factorizations.
-const KRYLOV_ITERATIONS: usize = 40;
+pub const KRYLOV_ITERATIONS: usize = 40;
 
 impl SparseSolver {
     /// A solver for n × n matrices of the shape `sparsity` gives; the symbolic analysis

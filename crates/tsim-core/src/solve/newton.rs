@@ -86,7 +86,8 @@ pub enum LinearSolverChoice {
     Auto,
     /// Dense Cholesky (LU fallback) at any size.
     Dense,
-    /// Sparse Cholesky (LDLᵀ, then LU fallback) at any size.
+    /// Sparse Cholesky (LDLᵀ, then LU fallback) at any size; an unsymmetric matrix by
+    /// GMRES on its symmetric part's Cholesky factor before LU.
     Sparse,
 }
 
