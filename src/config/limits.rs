@@ -431,7 +431,7 @@ impl CaseConfig {
 
 #[cfg(test)]
 mod tests {
-    use super::{bytes_text, CHOLESKY_COPIES};
+    use super::{bytes_text, Sizes, CHOLESKY_COPIES};
     use crate::config::parse_case;
     use crate::solve::SparseSolver;
     use crate::solve::KRYLOV_ITERATIONS;
@@ -439,10 +439,11 @@ mod tests {
 
     /// A 20 × 20 grid's sparse Newton (3 836 free DOF) is estimated from its own Cholesky
     /// factor — the nonzeros of the solver a stage builds — and, with a damped deployment
-    /// (objective damping: unsymmetric steps), also GMRES's storage on top.
+    /// (objective damping: unsymmetric steps), also GMRES's storage on top; form-finding's
+    /// stability check counts the Newton solver it runs beside.
     #[test]
     fn a_sparse_estimate_counts_the_solvers_factor_and_gmres_for_unsymmetric_steps() {
-        let case = |damped: bool| {
+        let parts = |damped: bool| {
             let text = format!(
                 "name: g\nmodel:\n  grid: {{ nx: 20, ny: 20 }}\nformfinding: {{}}\n\
                  substitution: {{ strut: aluminium, cable: steel_cable, prestress_scale: 100.0 }}\n\
@@ -451,28 +452,28 @@ mod tests {
             );
             let cfg = parse_case(&text, "g.yaml").unwrap_or_else(|e| panic!("{e}"));
             let model = cfg.model.build().unwrap();
-            (cfg.estimate(&model), model)
+            let sizes = Sizes::new(&cfg, &model);
+            (cfg.stage_memory(&sizes, None), sizes, model)
         };
-        let ((damped, model), (undamped, _)) = (case(true), case(false));
+        let ((damped, s, model), (undamped, _, _)) = (parts(true), parts(false));
         let dofs = DofMap::new(&model, &[]);
         let nnz = SparseSolver::new(dofs.len(), tangent_sparsity(&model, &dofs)).factor_nonzeros() as f64;
-        assert!(nnz > 0.0);
+        assert_eq!(s.factor, nnz);
+        let (solver, check) = (&damped[0], &damped[1]);
         assert!(
-            damped
-                .memory_part
-                .what
-                .contains(&format!("Cholesky factor ({nnz} nonzeros), and GMRES")),
+            solver.what.contains(&format!("Cholesky factor ({nnz} nonzeros), and GMRES")),
             "{}",
-            damped.memory_part.what
+            solver.what
         );
-        assert!(!undamped.memory_part.what.contains("GMRES"), "{}", undamped.memory_part.what);
-        // The part, exactly: the tangent's values and indices, two copies of the factor's
-        // values, the symmetric part with its transpose map and GMRES's basis.
-        let pattern = 9.0 * model.node_count() as f64 + 18.0 * model.members.len() as f64;
-        let free = 3.0 * model.node_count() as f64 - model.support_count() as f64;
-        let expected = 16.0 * pattern + 8.0 * nnz * CHOLESKY_COPIES + 12.0 * pattern + 8.0 * (KRYLOV_ITERATIONS + 1) as f64 * free;
-        assert_eq!(damped.memory_part.bytes, expected);
-        assert!(undamped.memory < damped.memory);
+        assert!(!undamped[0].what.contains("GMRES"), "{}", undamped[0].what);
+        // The parts, exactly: the tangent's values and indices and two copies of the
+        // factor's values, with GMRES's symmetric part, transpose map and basis; the check's
+        // sparse factorization and Lanczos basis beside form-finding's solver (one factor).
+        let tangent = 16.0 * s.pattern();
+        let gmres = 12.0 * s.pattern() + 8.0 * (KRYLOV_ITERATIONS + 1) as f64 * s.n;
+        assert_eq!(solver.bytes, tangent + 8.0 * nnz * CHOLESKY_COPIES + gmres);
+        assert_eq!(undamped[0].bytes, tangent + 8.0 * nnz * CHOLESKY_COPIES);
+        assert_eq!(check.bytes, tangent + 8.0 * nnz + s.partial_bytes(1));
     }
 
     #[test]
