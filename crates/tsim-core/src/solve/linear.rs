@@ -476,6 +476,30 @@ impl SparseSolver {
     }
 }
 
+/// Cholesky of the symmetric matrix with `values` on `pattern` (column pointers, row
+/// indices; its lower triangle read) into `l_values`, on the symbolic factor `symbolic`.
+fn numeric_llt(
+    symbolic: &SymbolicCholesky<usize>,
+    (col_ptr, row_idx): (&[usize], &[usize]),
+    values: &[f64],
+    l_values: &mut [f64],
+    mem: &mut MemBuffer,
+) -> Result<(), LltError> {
+    let n = col_ptr.len() - 1;
+    let a = SparseColMatRef::new(SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx), values);
+    symbolic
+        .factorize_numeric_llt(
+            l_values,
+            a,
+            Side::Lower,
+            LltRegularization::default(),
+            Par::Seq,
+            MemStack::new(mem),
+            Default::default(),
+        )
+        .map(|_| ())
+}
+
 /// The pattern of n × n matrices of the shape `sparsity` gives, compressed by columns (both
 /// triangles and the diagonal, rows sorted), and its symbolic Cholesky factor.
 fn analyse<P: IntoIterator<Item = (usize, usize)>>(
@@ -682,20 +706,8 @@ impl SparseSolver {
         for (k, &t) in self.transpose.iter().enumerate() {
             self.symmetric_part[k] = 0.5 * (self.values[k] + self.values[t as usize]);
         }
-        let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        let a = SparseColMatRef::new(structure, &self.symmetric_part);
-        Ok(self
-            .symbolic
-            .factorize_numeric_llt(
-                &mut self.l_values,
-                a,
-                Side::Lower,
-                LltRegularization::default(),
-                Par::Seq,
-                MemStack::new(&mut self.mem),
-                Default::default(),
-            )
-            .is_ok())
+        let pattern = (&self.col_ptr[..], &self.row_idx[..]);
+        Ok(numeric_llt(&self.symbolic, pattern, &self.symmetric_part, &mut self.l_values, &mut self.mem).is_ok())
     }
 
     /// Solves A x = rhs in place by GMRES preconditioned with the symmetric part's
@@ -778,18 +790,8 @@ impl TangentSolver for SparseSolver {
     }
 
     fn cholesky(&mut self) -> bool {
-        let n = self.col_ptr.len() - 1;
-        let structure = SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx);
-        let a = SparseColMatRef::new(structure, &self.values);
-        let llt = self.symbolic.factorize_numeric_llt(
-            &mut self.l_values,
-            a,
-            Side::Lower,
-            LltRegularization::default(),
-            Par::Seq,
-            MemStack::new(&mut self.mem),
-            Default::default(),
-        );
+        let pattern = (&self.col_ptr[..], &self.row_idx[..]);
+        let llt = numeric_llt(&self.symbolic, pattern, &self.values, &mut self.l_values, &mut self.mem);
         (self.factored, self.failed_pivot) = match llt {
             Ok(_) => (Factored::Cholesky, None),
             Err(e) => (Factored::None, Some(self.pivot_dof(e))),
