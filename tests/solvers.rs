@@ -87,11 +87,12 @@ fn relative_gap(a: &[f64], b: &[f64]) -> f64 {
 /// corrects its held factorization for the cables that switched (solve/low_rank.rs)
 /// instead of factoring again: the same deployment to the Newton tolerance, for fewer
 /// factorizations, with Newmark and with the energy–momentum scheme (its own member
-/// tangent). Measured: Newmark 1 185 iterations / 78 factorizations dense, 1 218 / 53
-/// sparse, end positions 2.4e-11 m apart, final kinetic energies 4.8e-11 of the largest,
-/// last member forces 5.0e-9, reactions 1.8e-9, energies (kinetic, strain, damping)
-/// 8.8e-11 of their largest; energy–momentum 1 126 / 105 and 1 206 / 61, 2.6e-11 m,
-/// 1.6e-11, forces 3.6e-9, reactions 1.6e-9, energies 2.0e-10. Bounds as
+/// tangent); unsymmetric steps go to GMRES on the symmetric part's Cholesky factor in the
+/// sparse solver, to LU in the dense one. Measured (4a2cae6): Newmark 1 188 iterations / 82 factorizations
+/// dense, 1 259 / 57 sparse, end positions 2.9e-11 m apart, final kinetic energies 6.8e-11
+/// of the largest, last member forces 2.1e-9, reactions 5.3e-10, energies (kinetic,
+/// strain, damping) 7.1e-11 of their largest; energy–momentum 1 167 / 105 and 1 247 / 61,
+/// 2.5e-11 m, 6.2e-11, forces 2.0e-9, reactions 5.4e-10, energies 1.4e-10. Bounds as
 /// `sparse_and_dense_paths_agree` (1e-8: the two paths differ by the Newton tolerance at
 /// each step, 1e-10 relative, over 200 steps).
 #[test]
