@@ -79,7 +79,7 @@ impl CaseSummary {
     /// The transient `name`'s figures (the paper's: `free_vibration`, `deployment`).
     pub fn transient(&self, name: &str) -> Option<&TransientStageSummary> {
         match self.stage(name)? {
-            StageSummary::Transient(s) => Some(s),
+            StageSummary::Transient(s) => Some(s.as_ref()),
             _ => None,
         }
     }

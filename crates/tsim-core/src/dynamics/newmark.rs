@@ -4,7 +4,9 @@ use super::midpoint_ends::MidpointEnds;
 use super::step_control::{AutoStep, ErrorEstimate};
 use super::viscous::{SnapRule, Viscous};
 use super::{Energy, Rayleigh, RestSchedule};
-use crate::solve::{bisect, newton, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, ScaledSink, SolveError, TangentSink};
+use crate::solve::{
+    bisect, newton, KrylovEffort, NewtonReport, NewtonSettings, NewtonWorkspace, Residual, Scale, ScaledSink, SolveError, TangentSink,
+};
 use crate::tsm::{tangent_sparsity, Assembly, EnergyMomentum};
 use nalgebra::Vector3;
 
@@ -518,6 +520,11 @@ impl<'a> Newmark<'a> {
     /// Every member's rest length now [m] (the elements' own where none changes).
     pub fn rest_lengths(&self) -> &[f64] {
         &self.asm.rest
+    }
+
+    /// The GMRES work of the stage's solves so far ([`NewtonWorkspace::krylov_effort`]).
+    pub fn krylov_effort(&self) -> KrylovEffort {
+        self.ws.as_ref().map_or_else(KrylovEffort::default, NewtonWorkspace::krylov_effort)
     }
 
     /// Whether some member's rest length follows a schedule in this stage.

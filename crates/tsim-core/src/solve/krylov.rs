@@ -10,6 +10,18 @@
 
 use std::collections::TryReserveError;
 
+/// The GMRES work of a solver's life: solves, their iterations, and the solves that did
+/// not converge (which then fell back to a factorization).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct KrylovEffort {
+    /// Systems solved by GMRES (converged or not).
+    pub solves: usize,
+    /// Their iterations (an unconverged solve's cap included).
+    pub iterations: usize,
+    /// Solves that did not reach the tolerance within the cap.
+    pub unconverged: usize,
+}
+
 /// The Krylov basis and the small least-squares problem, kept between solves so that a
 /// solve allocates nothing once the first has run.
 #[derive(Default)]

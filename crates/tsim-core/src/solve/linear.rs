@@ -20,7 +20,7 @@ use faer::sparse::{FaerError, SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
 
 use super::backoff::Backoff;
-use super::krylov::Gmres;
+use super::krylov::{Gmres, KrylovEffort};
 use super::low_rank::MOST_NEW;
 use super::small_solve::{cholesky_in_place, cholesky_solve_in_place, SMALL_FACTOR, SMALL_SOLVE};
 
@@ -148,6 +148,11 @@ pub trait TangentSolver: TangentSink + Send {
     /// converge factors the matrix by LU), for Newton to count.
     fn take_late_factorizations(&mut self) -> usize {
         0
+    }
+    /// The GMRES solves made so far and their iterations (none but for the sparse
+    /// solver's unsymmetric matrices).
+    fn krylov_effort(&self) -> KrylovEffort {
+        KrylovEffort::default()
     }
     /// Solves for several right-hand sides at once, `rhs` holding them one after another
     /// (n entries each). A solver may solve them as a block, which reads its factors once.
@@ -402,6 +407,8 @@ pub struct SparseSolver {
     /// LU factorizations made in a solve, where GMRES did not converge (see
     /// [`TangentSolver::take_late_factorizations`]).
     late_factorizations: usize,
+    /// The GMRES work so far ([`TangentSolver::krylov_effort`]).
+    krylov: KrylovEffort,
     /// Whether a symmetric matrix is tried with Cholesky before LDLᵀ.
     ///
     /// Why a back-off: a Cholesky that fails costs up to a whole factorization, and with a
@@ -464,6 +471,7 @@ impl SparseSolver {
             gmres: Gmres::default(),
             krylov_first: Backoff::default(),
             late_factorizations: 0,
+            krylov: KrylovEffort::default(),
             cholesky_first: Backoff::default(),
         }
     }
@@ -722,6 +730,7 @@ impl SparseSolver {
             l_values,
             mem,
             gmres,
+            krylov,
             ..
         } = self;
         let multiply = |x: &[f64], out: &mut [f64]| {
@@ -736,9 +745,11 @@ impl SparseSolver {
             let x = faer::ColMut::from_slice_mut(v).as_mat_mut();
             LltRef::new(symbolic, l_values).solve_in_place_with_conj(Conj::No, x, Par::Seq, MemStack::new(mem));
         };
-        gmres
-            .solve(rhs, KRYLOV_TOLERANCE, KRYLOV_ITERATIONS, multiply, precondition)
-            .is_some()
+        let iterations = gmres.solve(rhs, KRYLOV_TOLERANCE, KRYLOV_ITERATIONS, multiply, precondition);
+        krylov.solves += 1;
+        krylov.iterations += iterations.unwrap_or(KRYLOV_ITERATIONS);
+        krylov.unconverged += usize::from(iterations.is_none());
+        iterations.is_some()
     }
 }
 
@@ -831,6 +842,10 @@ impl TangentSolver for SparseSolver {
 
     fn take_late_factorizations(&mut self) -> usize {
         std::mem::take(&mut self.late_factorizations)
+    }
+
+    fn krylov_effort(&self) -> KrylovEffort {
+        self.krylov
     }
 
     /// Cholesky's and LDLᵀ's solves take the columns as one block (beyond [`MOST_NEW`]
@@ -1091,11 +1106,22 @@ mod tests {
         let (factored, error, late) = unsymmetric_solve(&mut solver, 0.5);
         assert_eq!((factored, late), (Factored::SymmetricPart, 0));
         assert!(error < 1e-7, "GMRES error {error:e}");
+        let first = solver.krylov_effort();
+        assert_eq!((first.solves, first.unconverged), (1, 0));
+        assert!((1..KRYLOV_ITERATIONS).contains(&first.iterations), "{first:?}");
         let (factored, error, late) = unsymmetric_solve(&mut solver, 40.0);
         assert_eq!((factored, solver.factored, late), (Factored::SymmetricPart, Factored::Lu, 1));
         assert!(error < 1e-10, "LU error {error:e}");
+        let second = solver.krylov_effort();
+        let expected = KrylovEffort {
+            solves: 2,
+            iterations: first.iterations + KRYLOV_ITERATIONS,
+            unconverged: 1,
+        };
+        assert_eq!(second, expected);
         let (factored, error, late) = unsymmetric_solve(&mut solver, 40.0);
         assert_eq!((factored, late), (Factored::Lu, 0));
         assert!(error < 1e-10, "LU error {error:e}");
+        assert_eq!(solver.krylov_effort(), expected, "the back-off's LU makes no GMRES solve");
     }
 }

@@ -16,6 +16,7 @@ pub mod small_solve;
 pub use bisect::{bisect, StepFailure};
 pub use dense_eigen::symmetric_eigen;
 pub use eigen::{krylov_dimension, lowest_eigen, partial_eigen, Diagonal, EigenError, EigenPairs, Shift};
+pub use krylov::KrylovEffort;
 pub use linear::{
     DenseSolver, LinearError, ScaledSink, SparseSolver, Sparsity, TangentSink, TangentSolver, KRYLOV_ITERATIONS, KRYLOV_SOLVE, SPARSE_LU,
 };

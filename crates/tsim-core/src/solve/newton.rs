@@ -1,5 +1,6 @@
 use super::backoff::Backoff;
 use super::bisect::StepFailure;
+use super::krylov::KrylovEffort;
 use super::linear::{dof_text, ratio_text, DenseSolver, LinearError, SparseSolver, Sparsity, TangentSink, TangentSolver};
 use super::low_rank::LowRank;
 
@@ -192,6 +193,11 @@ impl NewtonWorkspace {
     /// step cut in halves spent before it was cut, which no converged report shows.
     pub fn last_effort(&self) -> (usize, usize) {
         (self.history.len().saturating_sub(1), self.factorizations)
+    }
+
+    /// The GMRES work of every solve so far, failed attempts' included.
+    pub fn krylov_effort(&self) -> KrylovEffort {
+        self.solver.krylov_effort()
     }
 }
 

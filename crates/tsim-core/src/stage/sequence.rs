@@ -65,8 +65,8 @@ pub enum StageSummary {
     Static(StaticSummary),
     /// An eigen stage's.
     Eigen(EigenSummary),
-    /// A transient's.
-    Transient(TransientStageSummary),
+    /// A transient's (boxed: the largest by far).
+    Transient(Box<TransientStageSummary>),
     /// A folding stage's.
     Folding(FoldSummary),
     /// A hold stage's.

@@ -80,7 +80,7 @@ impl SequenceStage for PlannedTransient {
         let towards = compared.map(|s| &s.positions[..]);
         let (end, transient) = stage.run_towards(run.structure, start.state.clone(), run.settings, recorder, towards)?;
         let figures = TransientStageSummary::new(transient, &end, compared);
-        Ok((start.under_same_loads(end), StageSummary::Transient(figures)))
+        Ok((start.under_same_loads(end), StageSummary::Transient(Box::new(figures))))
     }
 }
 
@@ -188,6 +188,19 @@ pub struct TransientSummary {
     /// Tangent factorizations of the failed attempts.
     #[serde(default)]
     pub failed_factorizations: usize,
+    /// Linear solves by GMRES: the sparse solver's unsymmetric step matrices (objective
+    /// damping's Jacobian), preconditioned by their symmetric part's Cholesky factor;
+    /// failed attempts' included. 0 on the dense path and where every step matrix was
+    /// symmetric.
+    #[serde(default)]
+    pub gmres_solves: usize,
+    /// Their iterations (each a product with the step matrix and a solve with the factor).
+    #[serde(default)]
+    pub gmres_iterations: usize,
+    /// GMRES solves that did not converge within `KRYLOV_ITERATIONS` (40) and were
+    /// solved by an LU factorization instead (counted in `factorizations`).
+    #[serde(default)]
+    pub gmres_fallbacks: usize,
     /// Largest kinetic energy over the steps [J].
     pub max_kinetic: f64,
     /// Kinetic energy at the last step [J].
@@ -691,6 +704,8 @@ impl<'s, 'r> Stepping<'s, 'r> {
         summary.equilibrium = self.frames.check.into();
         summary.final_kinetic = nm.energy().kinetic;
         (summary.failed_iterations, summary.failed_factorizations) = (nm.retried.iterations, nm.retried.factorizations);
+        let krylov = nm.krylov_effort();
+        (summary.gmres_solves, summary.gmres_iterations, summary.gmres_fallbacks) = (krylov.solves, krylov.iterations, krylov.unconverged);
         (summary.rejected_steps, summary.over_tolerance_steps) = (nm.retried.rejected, nm.retried.over_tolerance);
         summary.settle_time = self.settle.since;
         summary.fastest_dashpot = FastestDashpot::of(nm, &self.structure.masses, summary.largest_step);
