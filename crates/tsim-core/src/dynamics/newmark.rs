@@ -1531,9 +1531,10 @@ mod tests {
 
     /// The same snap with the paper's β K_T(x)·v at the current iterate, whose K_T jumps
     /// where the cable goes taut: the whole step has no root and is cut; the failed
-    /// attempts' work is kept in `retried`. Newton bounces between the two sides, and each
-    /// attempt ends when its residuals repeat (iteration 3: [`crate::solve::SolveError::Cycling`])
-    /// where it used to run to the iteration cap of 50.
+    /// attempts' work is kept in `retried`. Newton's step towards the other side raises
+    /// the residual at every length, and each attempt ends there
+    /// ([`crate::solve::SolveError::NoDescent`]) where it used to run to the iteration cap
+    /// of 50.
     #[test]
     fn failed_step_attempts_are_counted() {
         snapping_cable(DampingTangent::Current, 6, |mut nm, (_, _, dt, _, _)| {
