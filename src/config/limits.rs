@@ -152,10 +152,14 @@ const MEMORY_PER_MEMBER: f64 = 800.0;
 /// a frame when frames are larger (`output::background`, `output::h5`), MCAP's chunk.
 const WRITER_BLOCKS: f64 = 16.0;
 const WRITER_FIXED: f64 = 16e6;
-/// Copies of the sparse Cholesky factor's values (8 nnz(L) bytes, nnz(L) from the solver's
-/// own symbolic analysis) a sparse Newton holds: the factor and, in time stepping, the
-/// held factor's low-rank corrections (at most nnz(L) values, `solve/low_rank.rs`).
-const CHOLESKY_COPIES: f64 = 2.0;
+/// Bytes a sparse solver holds per nonzero of its Cholesky factor (nnz(L) from its own
+/// symbolic analysis), beside the tangent's 16 B an entry: the factor's values (8 B) and
+/// its symbolic structure and scratch. Measured (heaptrack, form-finding's two solvers):
+/// 14.6 B at 47 × 47 and 15.1 B at 105 × 105 (bench/pipeline.md, session 34).
+const SOLVER_PER_FACTOR_NONZERO: f64 = 15.0;
+/// A time-stepping sparse Newton's second copy of the factor's values: the held factor's
+/// low-rank corrections (at most nnz(L) values, `solve/low_rank.rs`) [bytes per nonzero].
+const LOW_RANK_PER_FACTOR_NONZERO: f64 = 8.0;
 /// Bytes per tangent entry and per free DOF that solving unsymmetric steps adds (objective
 /// damping, the energy–momentum scheme): the matrix's symmetric part and its transpose map
 /// (12 B an entry), and GMRES's basis of `KRYLOV_ITERATIONS` + 1 vectors. The sparse LU
@@ -240,7 +244,12 @@ impl Sizes {
     /// The partial eigensolver's sparse matrix and Cholesky factor (Newton's pattern) and
     /// its Krylov basis, n × (dimension + 1) plus as much again while restarting.
     fn partial_bytes(&self, modes: usize) -> f64 {
-        self.pattern() * 16.0 + 8.0 * self.factor + 2.0 * 8.0 * self.n * (krylov_dimension(modes) + 1) as f64
+        self.solver_bytes() + 2.0 * 8.0 * self.n * (krylov_dimension(modes) + 1) as f64
+    }
+
+    /// A sparse solver on the tangent: its values and indices and its Cholesky factor.
+    fn solver_bytes(&self) -> f64 {
+        self.pattern() * 16.0 + SOLVER_PER_FACTOR_NONZERO * self.factor
     }
 
     /// Entries of the sparse tangent (a 3 × 3 block per node and two per member) [count].
@@ -382,16 +391,12 @@ impl CaseConfig {
             Part {
                 field: "model".into(),
                 what: format!("Newton's sparse tangent on {n} free DOF, its Cholesky factor ({nnz} nonzeros){gmres}"),
-                bytes: s.pattern() * 16.0 + 8.0 * s.factor * CHOLESKY_COPIES + gmres_bytes,
+                bytes: s.solver_bytes() + LOW_RANK_PER_FACTOR_NONZERO * s.factor + gmres_bytes,
             }
         };
         let stability = if ModeSolver::lowest(1).partial(n as usize) {
             // Form-finding's Newton solver (symmetric: one factor) is held while it runs.
-            let newton = if dense_newton {
-                2.0 * dense(n)
-            } else {
-                s.pattern() * 16.0 + 8.0 * s.factor
-            };
+            let newton = if dense_newton { 2.0 * dense(n) } else { s.solver_bytes() };
             Part {
                 field: "model".into(),
                 what: format!(
@@ -431,10 +436,10 @@ impl CaseConfig {
 
 #[cfg(test)]
 mod tests {
-    use super::{bytes_text, Sizes, CHOLESKY_COPIES};
+    use super::{bytes_text, Sizes, LOW_RANK_PER_FACTOR_NONZERO, SOLVER_PER_FACTOR_NONZERO};
     use crate::config::parse_case;
     use crate::solve::SparseSolver;
-    use crate::solve::KRYLOV_ITERATIONS;
+    use crate::solve::{krylov_dimension, KRYLOV_ITERATIONS};
     use crate::tsm::{tangent_sparsity, DofMap};
 
     /// A 20 × 20 grid's sparse Newton (3 836 free DOF) is estimated from its own Cholesky
@@ -466,14 +471,16 @@ mod tests {
             solver.what
         );
         assert!(!undamped[0].what.contains("GMRES"), "{}", undamped[0].what);
-        // The parts, exactly: the tangent's values and indices and two copies of the
-        // factor's values, with GMRES's symmetric part, transpose map and basis; the check's
-        // sparse factorization and Lanczos basis beside form-finding's solver (one factor).
-        let tangent = 16.0 * s.pattern();
+        // The parts, exactly: the tangent's values and indices, the factor (values and
+        // symbolic structure) and the low-rank corrections' copy of its values, with
+        // GMRES's symmetric part, transpose map and basis; the check's sparse solver and
+        // Lanczos basis beside form-finding's solver (no low-rank copy: a static stage).
+        let solver_bytes = 16.0 * s.pattern() + SOLVER_PER_FACTOR_NONZERO * nnz;
         let gmres = 12.0 * s.pattern() + 8.0 * (KRYLOV_ITERATIONS + 1) as f64 * s.n;
-        assert_eq!(solver.bytes, tangent + 8.0 * nnz * CHOLESKY_COPIES + gmres);
-        assert_eq!(undamped[0].bytes, tangent + 8.0 * nnz * CHOLESKY_COPIES);
-        assert_eq!(check.bytes, tangent + 8.0 * nnz + s.partial_bytes(1));
+        assert_eq!(solver.bytes, solver_bytes + LOW_RANK_PER_FACTOR_NONZERO * nnz + gmres);
+        assert_eq!(undamped[0].bytes, solver_bytes + LOW_RANK_PER_FACTOR_NONZERO * nnz);
+        let lanczos = 2.0 * 8.0 * s.n * (krylov_dimension(1) + 1) as f64;
+        assert_eq!(check.bytes, 2.0 * solver_bytes + lanczos);
     }
 
     #[test]
