@@ -701,9 +701,9 @@ fn axpy(u: &mut [f64], alpha: f64, d: &[f64]) {
 /// Why: a large grid's first steps after a release switch thousands of cables slack or
 /// taut per iteration, and whole Newton steps then overshoot; without it a 332 × 332
 /// grid's first step wandered between max|r| 1e3 and 7e6 N to the 50-iteration cap (twice
-/// in four steps), and a 105 × 105 grid's first 100 steps took 926 iterations and 299
-/// factorizations (bench/pipeline.md). Where the whole step lowers the residual (a
-/// converging Newton step always does), it is taken unchanged.
+/// in four steps: 100 failed iterations, 20 with the search; bench/pipeline.md). Where the
+/// whole step lowers the residual (a converging Newton step always does), it is taken
+/// unchanged: the paper's deployment is bit for bit as without the search.
 fn backtrack(problem: &mut impl Residual, u: &mut [f64], ws: &mut NewtonWorkspace, whole: f64) -> Search {
     let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
     let start = norm(&ws.r);
